@@ -1,0 +1,133 @@
+"""The gait table: one row per 60-frame window, stored as Parquet with fixed-size list columns.
+
+Array columns are flattened row-major into ``fixed_size_list<float32>``; their shapes, the joint names,
+parents, rest offsets, the emotion order and units are in the schema metadata (key ``emogait``), so a
+reader needs nothing but the file. Writes are atomic (temporary file + rename) and deterministic.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from pipeline.skeleton import Skeleton
+
+EMOTIONS = ("happy", "sad", "angry", "neutral")
+
+SCALAR_COLUMNS: dict[str, pa.DataType] = {
+    "gait_id": pa.string(),
+    "clip_id": pa.string(),
+    "source": pa.string(),
+    "file": pa.string(),
+    "sha256": pa.string(),
+    "t_start": pa.float64(),
+    "t_end": pa.float64(),
+    "source_fps": pa.float64(),
+    "fps": pa.float64(),
+    "scale": pa.float64(),
+    "source_leg_m": pa.float64(),
+    "content": pa.string(),
+    "style": pa.string(),
+    "label_method": pa.string(),
+}
+
+
+def array_shapes(window: int, joints: int) -> dict[str, tuple[int, ...]]:
+    return {
+        "emotion": (len(EMOTIONS),),
+        "positions": (window, joints, 3),
+        "rotations": (window, joints, 4),
+        "root_path": (window, 2),
+        "heading": (window,),
+    }
+
+
+def to_table(windows: Sequence[dict[str, Any]], skeleton: Skeleton, window: int) -> pa.Table:
+    shapes = array_shapes(window, skeleton.joint_count)
+    columns: dict[str, pa.Array] = {}
+    for name, dtype in SCALAR_COLUMNS.items():
+        columns[name] = pa.array([w[name] for w in windows], type=dtype)
+    for name, shape in shapes.items():
+        size = int(np.prod(shape))
+        values = [w[name] for w in windows]
+        mask = np.array([v is None for v in values], dtype=bool)
+        flat = np.zeros((len(values), size), dtype=np.float32)
+        for i, v in enumerate(values):
+            if v is not None:
+                flat[i] = np.asarray(v, dtype=np.float32).reshape(size)
+        arr = pa.FixedSizeListArray.from_arrays(pa.array(flat.reshape(-1), type=pa.float32()), size)
+        if mask.any():
+            arr = pa.FixedSizeListArray.from_arrays(arr.values, size, mask=pa.array(mask))
+        columns[name] = arr
+    meta = {
+        "shapes": {k: list(v) for k, v in shapes.items()},
+        "joint_names": list(skeleton.names),
+        "parents": list(skeleton.parents),
+        "rest_offsets_m": skeleton.offsets.round(6).tolist(),
+        "emotion_order": list(EMOTIONS),
+        "units": {"positions": "m", "root_path": "m", "heading": "rad", "t_start": "s", "t_end": "s"},
+        "axes": "right-handed, Y up, +Z forward at rest, the body's left on +X",
+        "rotations": "per-bone local unit quaternions [w, x, y, z]; FK: G_j = G_parent q_j, X_j = X_parent + G_j o_j",
+    }
+    table = pa.table(columns)
+    return table.replace_schema_metadata({b"emogait": json.dumps(meta, sort_keys=True).encode()})
+
+
+def write_parquet_atomic(table: pa.Table, path: str | Path) -> None:
+    """Write deterministically (no timestamps; fixed row groups) and atomically (rename into place)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    try:
+        pq.write_table(table, tmp, compression="zstd", row_group_size=512, write_statistics=True)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def write_json_atomic(obj: Any, path: str | Path) -> None:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    with os.fdopen(fd, "w") as fh:
+        json.dump(obj, fh, indent=2, sort_keys=True)
+        fh.write("\n")
+    os.replace(tmp, path)
+
+
+def read_metadata(path: str | Path) -> dict[str, Any]:
+    return json.loads(pq.read_schema(path).metadata[b"emogait"])
+
+
+def column_array(table: pa.Table, name: str, shape: Sequence[int]) -> np.ndarray:
+    """A fixed-size list column as a (rows, *shape) float32 array; null rows come back as NaN."""
+    col = table.column(name).combine_chunks()
+    size = int(np.prod(shape))
+    # .values keeps the slots of null rows (flatten() would drop them and misalign the rest)
+    flat = col.values.slice(col.offset * size, len(col) * size).to_numpy(zero_copy_only=False).reshape(len(col), size)
+    out = flat.astype(np.float32, copy=True)
+    if col.null_count:
+        out[~np.asarray(col.is_valid())] = np.nan
+    return out.reshape((len(col), *shape))
+
+
+def read_gaits(path: str | Path, columns: Sequence[str] | None = None) -> tuple[pa.Table, dict[str, np.ndarray]]:
+    """The table and its array columns as numpy arrays with their recorded shapes."""
+    meta = read_metadata(path)
+    table = pq.read_table(path, columns=list(columns) if columns else None)
+    arrays = {
+        name: column_array(table, name, shape)
+        for name, shape in meta["shapes"].items()
+        if name in table.column_names
+    }
+    return table, arrays

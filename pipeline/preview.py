@@ -1,0 +1,126 @@
+"""Stick-figure previews: filmstrips (PNG) and animations (GIF) of gaits, for people to check by eye.
+
+Each row is one motion: a strip of frames seen from the side (the horizontal axis is the direction of
+travel, so a walker moves left to right), each frame centred on its root, with the floor drawn at y = 0,
+and a top view of the root path. Left limbs are blue, right limbs red, the trunk black.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+LEFT, RIGHT, TRUNK = "#1f5fbf", "#c0392b", "#222222"
+
+
+@dataclass(frozen=True)
+class Motion:
+    title: str
+    positions: np.ndarray  # (T, J, 3), metres, Y up
+    parents: Sequence[int]
+    names: Sequence[str]
+    root: int = 0  # the pelvis: frames are centred on it and its path is the one shown
+
+
+_LEFT_NAME = re.compile(r"left|(?<![a-z])l(?![a-z])")
+_RIGHT_NAME = re.compile(r"right|(?<![a-z])r(?![a-z])")
+
+
+def _bone_colour(name: str) -> str:
+    """Colour by side, from canonical names (left_knee) or common source names (LeftLeg, Foot_L, CC_Base_L_Calf)."""
+    lower = name.lower()
+    if _LEFT_NAME.search(lower):
+        return LEFT
+    if _RIGHT_NAME.search(lower):
+        return RIGHT
+    return TRUNK
+
+
+def _travel_axes(pos: np.ndarray, root: int) -> tuple[np.ndarray, np.ndarray]:
+    """Unit horizontal vectors (forward, lateral) from the root's net travel (+Z if it stands still)."""
+    travel = pos[-1, root, [0, 2]] - pos[0, root, [0, 2]]
+    if np.linalg.norm(travel) < 1e-3:
+        travel = np.array([0.0, 1.0])
+    fwd = travel / np.linalg.norm(travel)
+    return fwd, np.array([-fwd[1], fwd[0]])
+
+
+def render_filmstrip(motions: Sequence[Motion], out: str | Path, frames: int = 8, dpi: int = 100) -> Path:
+    """One row per motion: ``frames`` evenly spaced side views plus a top view of the path."""
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig, axes = plt.subplots(len(motions), frames + 1, figsize=(1.6 * frames + 3.0, 2.6 * len(motions)),
+                             squeeze=False, gridspec_kw={"width_ratios": [1] * frames + [1.8]})
+    for row, motion in zip(axes, motions):
+        pos = np.asarray(motion.positions, dtype=np.float64)
+        fwd, _ = _travel_axes(pos, motion.root)
+        picks = np.linspace(0, len(pos) - 1, frames).round().astype(int)
+        top = max(2.0, float(pos[..., 1].max()) + 0.1)
+        for ax, t in zip(row[:-1], picks):
+            p = pos[t]
+            u = (p[:, [0, 2]] - p[motion.root, [0, 2]]) @ fwd  # along travel, root at 0
+            for j, parent in enumerate(motion.parents):
+                if parent >= 0:
+                    ax.plot([u[parent], u[j]], [p[parent, 1], p[j, 1]], color=_bone_colour(motion.names[j]), lw=2)
+            ax.scatter(u, p[:, 1], s=6, color="#555555", zorder=3)
+            ax.axhline(0.0, color="#8a6d3b", lw=1.5)
+            ax.set_xlim(-0.8, 0.8)
+            ax.set_ylim(-0.1, top)
+            ax.set_aspect("equal")
+            ax.set_xticks([])
+            ax.set_yticks([])
+            ax.set_title(f"t={t}", fontsize=8)
+        row[0].set_ylabel(motion.title, fontsize=8)
+        ax = row[-1]
+        r = motion.root
+        ax.plot(pos[:, r, 0], pos[:, r, 2], color=TRUNK, lw=1.5)
+        for foot, colour in (("left", LEFT), ("right", RIGHT)):
+            idx = [j for j, n in enumerate(motion.names) if n.lower().startswith(foot) and "toe" in n.lower()]
+            if idx:
+                ax.plot(pos[:, idx[0], 0], pos[:, idx[0], 2], color=colour, lw=0.8)
+        ax.scatter(pos[0, r, 0], pos[0, r, 2], color="green", s=15, zorder=3, label="start")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_title("top view (x, z)", fontsize=8)
+        ax.tick_params(labelsize=6)
+    fig.tight_layout()
+    fig.savefig(out, dpi=dpi)
+    plt.close(fig)
+    return out
+
+
+def render_gif(motion: Motion, out: str | Path, fps: float = 30.0) -> Path:
+    """An animation of one motion from the side, following the root."""
+    from matplotlib.animation import FuncAnimation, PillowWriter
+
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    pos = np.asarray(motion.positions, dtype=np.float64)
+    fwd, _ = _travel_axes(pos, motion.root)
+    fig, ax = plt.subplots(figsize=(3, 3.5))
+    lines = [ax.plot([], [], color=_bone_colour(motion.names[j]), lw=2)[0] if p >= 0 else None
+             for j, p in enumerate(motion.parents)]
+    ax.axhline(0.0, color="#8a6d3b", lw=1.5)
+    ax.set_xlim(-1, 1)
+    ax.set_ylim(-0.1, max(2.0, float(pos[..., 1].max()) + 0.1))
+    ax.set_aspect("equal")
+    ax.set_title(motion.title, fontsize=8)
+
+    def draw(t: int):
+        p = pos[t]
+        u = (p[:, [0, 2]] - p[motion.root, [0, 2]]) @ fwd
+        for j, parent in enumerate(motion.parents):
+            if parent >= 0:
+                lines[j].set_data([u[parent], u[j]], [p[parent, 1], p[j, 1]])
+        return [ln for ln in lines if ln is not None]
+
+    FuncAnimation(fig, draw, frames=len(pos), blit=True).save(out, writer=PillowWriter(fps=fps))
+    plt.close(fig)
+    return out

@@ -1,0 +1,86 @@
+"""The `emogait` command: run pipeline stages, preview gaits, pin source manifests."""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import sys
+from pathlib import Path
+
+import yaml
+
+from stages.common import REPO, SKELETON, SOURCES, load_params, mocap_root
+
+
+def _cmd_ingest(args: argparse.Namespace) -> int:
+    from stages import ingest
+
+    ingest.main(Path(args.params) if args.params else None)
+    return 0
+
+
+def _cmd_preview(args: argparse.Namespace) -> int:
+    from pipeline.preview import Motion, render_filmstrip, render_gif
+    from stages.preview import bvh_motions, gait_motions
+
+    motions: list[Motion] = []
+    if args.gait:
+        motions += gait_motions(Path(args.gaits), args.gait)
+    for bvh in args.bvh or []:
+        motions += bvh_motions(Path(bvh), args.source, load_params(Path(args.params)) if args.params else load_params(),
+                               show_source=not args.canonical_only)
+    if not motions:
+        print("nothing to preview: give --gait ID and/or --bvh FILE", file=sys.stderr)
+        return 2
+    if args.out.endswith(".gif"):
+        render_gif(motions[0], args.out)
+    else:
+        render_filmstrip(motions, args.out, frames=args.frames)
+    print(f"wrote {args.out}")
+    return 0
+
+
+def _cmd_pin(args: argparse.Namespace) -> int:
+    """Rewrite a manifest's file list with the sha256 of every file its globs find under the mocap root."""
+    path = Path(args.manifest)
+    doc = yaml.safe_load(path.read_text())
+    root = Path(args.mocap_root) if args.mocap_root else mocap_root(load_params())
+    folder = root / doc["name"]
+    found = sorted({p.relative_to(folder).as_posix() for g in doc["globs"] for p in folder.glob(g) if p.is_file()})
+    doc["files"] = [{"path": rel, "sha256": hashlib.sha256((folder / rel).read_bytes()).hexdigest()} for rel in found]
+    header = "".join(line + "\n" for line in path.read_text().splitlines() if line.startswith("#"))
+    path.write_text(header + yaml.safe_dump(doc, sort_keys=False, width=120, allow_unicode=True))
+    print(f"pinned {len(found)} files in {path}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="emogait", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True)
+    p = sub.add_parser("ingest", help="run the ingest stage (what `dvc repro ingest` runs)")
+    p.add_argument("--params", help="params file (default: the repository's params.yaml)")
+    p.set_defaults(func=_cmd_ingest)
+    p = sub.add_parser("preview", help="stick-figure PNG strip (or .gif) of gaits by id and/or BVH clips")
+    p.add_argument("--gait", action="append", help="gait id from the gait table (repeatable)")
+    p.add_argument("--gaits", default=str(REPO / "data/ingested/gaits.parquet"), help="gait table (Parquet)")
+    p.add_argument("--bvh", action="append", help="a BVH file under a source folder of the mocap root (repeatable)")
+    p.add_argument("--source", help="source manifest name for --bvh (default: the folder under the mocap root)")
+    p.add_argument("--canonical-only", action="store_true", help="for --bvh, skip the source-skeleton row")
+    p.add_argument("--params", help="params file (default: the repository's params.yaml)")
+    p.add_argument("--frames", type=int, default=8, help="frames per strip")
+    p.add_argument("--out", required=True, help="output .png (filmstrip) or .gif (animation of the first motion)")
+    p.set_defaults(func=_cmd_preview)
+    p = sub.add_parser("pin", help="pin every file a source manifest's globs find (sha256) into the manifest")
+    p.add_argument("manifest", help=f"e.g. {SOURCES.relative_to(REPO)}/NAME.yaml")
+    p.add_argument("--mocap-root", help="default: params.yaml data.mocap_root")
+    p.set_defaults(func=_cmd_pin)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    return args.func(args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

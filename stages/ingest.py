@@ -1,0 +1,41 @@
+"""DVC stage `ingest`: mocap sources -> data/ingested/gaits.parquet + reports/ingest.json."""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+from pipeline.gait_table import to_table, write_json_atomic, write_parquet_atomic
+from pipeline.ingest import IngestConfig, missing_data_message, run_ingest
+from pipeline.skeleton import load_skeleton
+from pipeline.sources import load_manifests
+from stages.common import REPO, SKELETON, SOURCES, load_params, mocap_root
+
+OUT_GAITS = REPO / "data" / "ingested" / "gaits.parquet"
+OUT_REPORT = REPO / "reports" / "ingest.json"
+
+
+def main(params_path: Path | None = None, out_gaits: Path = OUT_GAITS, out_report: Path = OUT_REPORT,
+         sources: Path = SOURCES) -> dict:
+    params = load_params(params_path) if params_path else load_params()
+    p = params["ingest"]
+    cfg = IngestConfig(mocap_root=mocap_root(params), target_fps=float(p["target_fps"]), window=int(p["window"]),
+                       stride=int(p["stride"]), min_gait_speed=float(p["min_gait_speed"]),
+                       chunk_frames=int(p["chunk_frames"]))
+    manifests = load_manifests(sources)
+    if not cfg.mocap_root.is_dir():
+        sys.exit(missing_data_message(manifests, cfg.mocap_root))
+    skeleton = load_skeleton(SKELETON)
+    windows, report = run_ingest(manifests, skeleton, cfg, scheduler_address=os.environ.get("DASK_SCHEDULER_ADDRESS"),
+                                 workers=p.get("workers"))
+    write_parquet_atomic(to_table(windows, skeleton, cfg.window), out_gaits)
+    write_json_atomic(report, out_report)
+    print(f"ingest: {report['files_seen']} files seen, {report['files_ingested']} ingested, "
+          f"{report['files_quarantined']} quarantined, {report['files_filtered']} filtered; "
+          f"{report['gaits']} gaits from {report['clips']} clips -> {out_gaits.relative_to(REPO)}")
+    return report
+
+
+if __name__ == "__main__":
+    main()

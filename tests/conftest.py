@@ -1,0 +1,52 @@
+"""Shared fixtures: the real mocap (read in place), the manifests, and one full ingest of the default data."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from pipeline.gait_table import read_gaits, to_table, write_parquet_atomic
+from pipeline.ingest import IngestConfig, run_ingest
+from pipeline.skeleton import load_skeleton
+from pipeline.sources import load_manifests
+from stages.common import REPO, SKELETON, SOURCES, load_params, mocap_root
+
+MOCAP = mocap_root(load_params())
+
+
+def pytest_sessionstart(session):
+    if not MOCAP.is_dir():
+        raise pytest.UsageError(f"the real mocap data is required at {MOCAP} (params.yaml data.mocap_root)")
+
+
+@pytest.fixture(scope="session")
+def skeleton():
+    return load_skeleton(SKELETON)
+
+
+@pytest.fixture(scope="session")
+def manifests():
+    return {m.name: m for m in load_manifests(SOURCES)}
+
+
+@pytest.fixture(scope="session")
+def ingest_config():
+    p = load_params()["ingest"]
+    return IngestConfig(mocap_root=MOCAP, target_fps=float(p["target_fps"]), window=int(p["window"]),
+                        stride=int(p["stride"]), min_gait_speed=float(p["min_gait_speed"]),
+                        chunk_frames=int(p["chunk_frames"]))
+
+
+@pytest.fixture(scope="session")
+def full_ingest(tmp_path_factory, manifests, skeleton, ingest_config):
+    """The whole default data through the local dask scheduler, written as the stage writes it."""
+    windows, report = run_ingest(list(manifests.values()), skeleton, ingest_config, workers=2, progress=False)
+    path = tmp_path_factory.mktemp("ingest") / "gaits.parquet"
+    write_parquet_atomic(to_table(windows, skeleton, ingest_config.window), path)
+    table, arrays = read_gaits(path)
+    return {"windows": windows, "report": report, "path": path, "table": table, "arrays": arrays}
+
+
+def repo_path(*parts: str) -> Path:
+    return REPO.joinpath(*parts)

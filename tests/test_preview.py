@@ -1,0 +1,32 @@
+"""Previews are real pictures: both sides of the body drawn, figures upright above the floor."""
+
+import matplotlib.image as mpimg
+import numpy as np
+
+from stages.cli import main
+from tests.conftest import MOCAP
+
+
+def _colour_fraction(img, rgb):
+    return (np.abs(img[..., :3] - np.array(rgb) / 255).sum(-1) < 0.1).mean()
+
+
+def test_preview_of_gait_ids_draws_both_sides(tmp_path, full_ingest):
+    ids = full_ingest["table"].column("gait_id").to_pylist()
+    happy = next(i for i in ids if "dataset-1_walk_happy_001" in i)
+    cmu = next(i for i in ids if i.startswith("cmu_iclone"))
+    out = tmp_path / "walks.png"
+    assert main(["preview", "--gaits", str(full_ingest["path"]), "--gait", happy, "--gait", cmu, "--out", str(out)]) == 0
+    img = mpimg.imread(out)
+    assert img.shape[0] > 300 and img.shape[1] > 1000
+    assert _colour_fraction(img, (0x1F, 0x5F, 0xBF)) > 1e-3  # left limbs
+    assert _colour_fraction(img, (0xC0, 0x39, 0x2B)) > 1e-3  # right limbs
+
+
+def test_preview_of_a_bvh_clip_and_a_gif(tmp_path):
+    bvh = MOCAP / "cmu_iclone/All_BVH/subjects/002/002_01.bvh"
+    png, gif = tmp_path / "clip.png", tmp_path / "clip.gif"
+    assert main(["preview", "--bvh", str(bvh), "--out", str(png)]) == 0
+    assert main(["preview", "--bvh", str(bvh), "--canonical-only", "--out", str(gif)]) == 0
+    assert mpimg.imread(png).shape[0] > 400  # two rows: canonical and source rig
+    assert gif.read_bytes()[:6] in (b"GIF87a", b"GIF89a")

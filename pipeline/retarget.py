@@ -70,12 +70,15 @@ def bvh_point_positions(clips: Sequence[BvhClip], points: Sequence[str], root_of
     order = sorted(keep)
     remap = {j: k for k, j in enumerate(order)}
     parents = [remap.get(skel.parents[j], -1) for j in order]
-    motion = np.concatenate([c.motion for c in clips]) if len(clips) > 1 else clips[0].motion
-    trans = np.concatenate([np.broadcast_to(c.skeleton.offsets[order], (c.frames, len(order), 3)) for c in clips])
-    root_base = np.concatenate([np.broadcast_to(c.skeleton.offsets[0], (c.frames, 3)) for c in clips])
-    rot = np.zeros((motion.shape[0], len(order), 4))
-    rot[..., 0] = 1.0
-    groups: dict[str, tuple[list[int], list[list[int]]]] = {}
+    motion = np.concatenate([c.motion for c in clips], dtype=np.float32)
+    frames = motion.shape[0]
+    offsets = np.stack([c.skeleton.offsets[order] for c in clips]).astype(np.float32)  # (clips, J, 3)
+    if (offsets == offsets[0]).all():
+        trans = np.repeat(offsets[:1], frames, axis=0)
+    else:  # e.g. Bandai: every file has its own Hips OFFSET (a start position)
+        trans = np.repeat(offsets, [c.frames for c in clips], axis=0)
+    root_base = trans[:, 0].copy()
+    groups: dict[str, tuple[list[int], list[list[int]]]] = {}  # rotation order -> (joints, motion columns)
     for k, j in enumerate(order):
         rot_axes = ""
         rot_cols: list[int] = []
@@ -84,7 +87,7 @@ def bvh_point_positions(clips: Sequence[BvhClip], points: Sequence[str], root_of
             axis = "XYZ".index(name[0])
             if name.endswith("position"):
                 add_offset = skel.parents[j] < 0 and root_offset == "add"
-                trans[:, k, axis] = motion[:, col] + (root_base[:, axis] if add_offset else 0.0)
+                trans[:, k, axis] = motion[:, col] + root_base[:, axis] if add_offset else motion[:, col]
             else:
                 rot_axes += name[0]
                 rot_cols.append(col)
@@ -92,15 +95,20 @@ def bvh_point_positions(clips: Sequence[BvhClip], points: Sequence[str], root_of
             ks, cols = groups.setdefault(rot_axes, ([], []))
             ks.append(k)
             cols.append(rot_cols)
-    rot_t = torch.from_numpy(rot.astype(np.float32))
-    for axes, (ks, cols) in groups.items():
-        angles = torch.from_numpy(np.deg2rad(motion[:, np.asarray(cols)]).astype(np.float32))  # (F, len(ks), len(axes))
-        rot_t[:, ks] = euler_to_quat(angles, axes)
-    positions, _ = forward_kinematics(rotations_from_bvh_form(rot_t, parents),
-                                      torch.from_numpy(trans.astype(np.float32)), parents)
-    idx = torch.tensor([remap[skel.index(p)] for p in points])
-    axes_matrix = torch.tensor(AXES_TO_Y_UP[up_axis], dtype=DTYPE)
-    return positions.index_select(-2, idx) @ axes_matrix.T
+    to_rad = np.float32(np.pi / 180.0)
+    if len(groups) == 1 and len(next(iter(groups.values()))[0]) == len(order):
+        (axes, (_, cols)), = groups.items()  # the usual case: one rotation order on every joint
+        rot = euler_to_quat(torch.from_numpy(motion[:, np.asarray(cols)]) * to_rad, axes)
+    else:
+        rot = torch.zeros(frames, len(order), 4)
+        rot[..., 0] = 1.0
+        for axes, (ks, cols) in groups.items():
+            rot[:, ks] = euler_to_quat(torch.from_numpy(motion[:, np.asarray(cols)]) * to_rad, axes)
+    positions, _ = forward_kinematics(rotations_from_bvh_form(rot, parents), torch.from_numpy(trans), parents)
+    selected = positions.index_select(-2, torch.tensor([remap[skel.index(p)] for p in points]))
+    if up_axis == "+Y":
+        return selected
+    return selected @ torch.tensor(AXES_TO_Y_UP[up_axis], dtype=DTYPE).T
 
 
 def map_joints(point_names: Sequence[str], point_positions: torch.Tensor, joint_map: Mapping[str, Any],
@@ -165,11 +173,16 @@ def bone_rotations(points: torch.Tensor, skeleton: Skeleton) -> torch.Tensor:
     points: (F, 21, 3) positions of the canonical joints in any units (frames of several clips may be
     stacked: each frame is solved on its own). Not yet hemisphere-continuous: see ``qfix``.
     """
+    # Work in level order (joints sorted by depth) so that each depth level is a contiguous slice.
+    order = [j for level in skeleton.depth_levels for j in level]
+    position_in_order = {j: k for k, j in enumerate(order)}
     parents = skeleton.parents
-    bones = points[:, 1:] - points[:, list(parents[1:])]
-    offsets = torch.from_numpy(skeleton.offsets).to(points)
-    rot = torch.zeros(points.shape[0], skeleton.joint_count, 4, dtype=points.dtype)
-    glob = torch.zeros_like(rot)
+    idx = torch.tensor(order)
+    parent_idx = torch.tensor([parents[j] if parents[j] >= 0 else 0 for j in order])
+    pts = points.index_select(1, idx)
+    bones = pts - points.index_select(1, parent_idx)  # (F, 21, 3) in level order; row 0 unused
+    rest = torch.from_numpy(skeleton.offsets[order]).to(points)
+    rest = rest / rest.norm(dim=-1, keepdim=True).clamp_min(1e-12)
     # Root: pelvis frame from the hip axis (the body's left, +X at rest) and the lower back (up, +Y).
     left = points[:, skeleton.index("left_hip")] - points[:, skeleton.index("right_hip")]
     up = points[:, skeleton.index("lower_back")] - points[:, 0]
@@ -177,19 +190,22 @@ def bone_rotations(points: torch.Tensor, skeleton: Skeleton) -> torch.Tensor:
     z = torch.cross(x, up, dim=-1)
     z = z / z.norm(dim=-1, keepdim=True).clamp_min(1e-12)
     y = torch.cross(z, x, dim=-1)
-    rot[:, 0] = glob[:, 0] = matrix_to_quat(torch.stack((x, y, z), dim=-1))
-    # Level by level: the shortest arc from the rest offset to the posed direction in the parent's frame.
-    has_children = set(parents)
+    root = matrix_to_quat(torch.stack((x, y, z), dim=-1))
+    local = [root.unsqueeze(1)]
+    glob = [root.unsqueeze(1)]  # global rotations, level by level, in level order
+    start = 1
     for level in skeleton.depth_levels[1:]:
-        js = list(level)
-        parent_glob = glob[:, [parents[j] for j in js]]
-        direction = qrot(qconj(parent_glob), bones[:, [j - 1 for j in js]])
-        local = qbetween(offsets[js].expand_as(direction), direction)
-        rot[:, js] = local
-        inner = [k for k, j in enumerate(js) if j in has_children]  # leaves pass no rotation on
-        if inner:
-            glob[:, [js[k] for k in inner]] = qmul(parent_glob[:, inner], local[:, inner])
-    return rot
+        stop = start + len(level)
+        parent_glob = torch.cat(glob, dim=1).index_select(
+            1, torch.tensor([position_in_order[parents[j]] for j in level]))
+        # The shortest arc from the rest offset to the posed direction, in the parent bone's frame.
+        direction = qrot(qconj(parent_glob), bones[:, start:stop])
+        q = qbetween(rest[start:stop].expand_as(direction), direction)
+        local.append(q)
+        glob.append(qmul(parent_glob, q))
+        start = stop
+    inverse = torch.tensor([position_in_order[j] for j in range(len(order))])
+    return torch.cat(local, dim=1).index_select(1, inverse)
 
 
 def retarget_to_canonical(points: torch.Tensor, skeleton: Skeleton, unit_scale_m: float) -> CanonicalMotion:

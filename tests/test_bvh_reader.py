@@ -94,3 +94,32 @@ def test_crlf_tabs_and_blank_lines_parse_the_same():
     a, b = parse_bvh(text), parse_bvh(messy)
     np.testing.assert_array_equal(a.motion, b.motion)
     assert a.frame_time == b.frame_time == pytest.approx(0.1)
+
+
+TOKENS_OK = ["0", "-0", "1.", ".5", "+7", "0.1", "0.30000000000000004", "5.1072e-06", "-1.2E+3", "1e22", "1e23",
+             "9007199254740993", "123456789012345678901234", "0.000000000000000000000000001234",
+             "2.2250738585072014e-308", "4.9e-324", "1e-400", "179769313486231570000000000000000000000e270"]
+TOKENS_BAD = ["1_0", "0x10", "nan", "-inf", "1e400", "1e", "--1", ".", "1.2.3", "\u0661", "1,5", '"1"']
+
+
+def test_bulk_parser_is_bit_identical_to_python_float():
+    from pipeline.readers import bvh
+
+    line = " ".join(TOKENS_OK)
+    got = bvh._bulk_frames(f"{line}\n{line}\r\n", 2, len(TOKENS_OK))
+    expected = np.array([float(t) for t in TOKENS_OK])
+    assert got is not None and (got.view(np.int64) == expected.view(np.int64)).all()  # bit for bit, -0.0 included
+    for token in TOKENS_BAD:
+        assert bvh._bulk_frames(f"1 {token}\n", 1, 2) is None, token
+
+
+def test_c_and_arrow_paths_agree_on_every_real_file():
+    from pipeline.readers import bvh
+
+    assert bvh._motion is not None, "the C parser is not built: `pip install -e .` compiles it"
+    for row in SHARED_ROWS[::7] + SHARED_ROWS[-12:]:
+        text = (MOCAP / row["local"]).read_text()
+        clip = parse_bvh(text)
+        data = text[text.index("Frame Time"):].split("\n", 1)[1]
+        arrow = bvh._bulk_frames_arrow(data.encode(), clip.frames, clip.skeleton.channel_count)
+        np.testing.assert_array_equal(clip.motion, arrow)

@@ -1,8 +1,9 @@
 """BVH reader: text in, a skeleton and a (frames x channels) array out.
 
 Handles any rotation order, any subset of the six channels on any joint, End Sites, CRLF, tabs and
-scientific notation. The MOTION block is parsed in bulk (Arrow's C CSV reader, values-per-line checked
-with numpy); only when that fails does a line-by-line pass run, to name the exact line and value.
+scientific notation. The MOTION block is parsed in bulk (a small C parser, ``_motion.c``, or Arrow's CSV
+reader when that is not built); only when that fails does a line-by-line pass run, to name the exact line
+and value.
 
 A reader knows files, not features: it does not map joints, change units or retarget.
 """
@@ -17,6 +18,11 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 import pyarrow.csv as pacsv
+
+try:  # the C bulk parser, built by `pip install` from _motion.c
+    from pipeline.readers import _motion
+except ImportError:  # pragma: no cover - source checkouts without a build use the Arrow path
+    _motion = None
 
 _MOTION_RE = re.compile(r"^[ \t]*MOTION[ \t]*\r?$", re.MULTILINE)
 VALID_CHANNELS = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
@@ -267,6 +273,14 @@ _CSV_CONVERT = pacsv.ConvertOptions(column_types={"v": pa.float64()}, strings_ca
 def _bulk_frames(data: str, n_frames: int, n_channels: int) -> np.ndarray | None:
     """(n_frames, n_channels) float64 array, or None if anything is off (the slow path then says what)."""
     raw = data.encode("ascii", errors="replace")
+    if _motion is not None:
+        values = _motion.parse(raw, n_frames, n_channels)
+        return None if values is None else np.frombuffer(values, dtype=np.float64).reshape(n_frames, n_channels)
+    return _bulk_frames_arrow(raw, n_frames, n_channels)
+
+
+def _bulk_frames_arrow(raw: bytes, n_frames: int, n_channels: int) -> np.ndarray | None:
+    """The same as the C parser, with Arrow's CSV reader (about 3x slower); used when _motion is not built."""
     byte = np.frombuffer(raw, dtype=np.uint8)
     if byte.size == 0:
         return None

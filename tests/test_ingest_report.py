@@ -84,3 +84,23 @@ def test_schema_metadata_describes_the_arrays(full_ingest, skeleton):
 
 def test_report_is_json_serialisable(full_ingest):
     json.dumps(full_ingest["report"])
+
+
+def test_missing_mocap_root_stops_with_what_to_fetch(tmp_path):
+    import pytest
+    import yaml
+
+    from stages import ingest
+    from stages.common import PARAMS
+
+    params = yaml.safe_load(PARAMS.read_text())
+    params["data"]["mocap_root"] = str(tmp_path / "nowhere")
+    path = tmp_path / "params.yaml"
+    path.write_text(yaml.safe_dump(params))
+    with pytest.raises(SystemExit) as stop:
+        ingest.main(path, out_gaits=tmp_path / "g.parquet", out_report=tmp_path / "r.json",
+                    out_preview=tmp_path / "p.png")
+    message = str(stop.value.code)
+    assert "does not exist" in message and "BandaiNamcoResearchInc/Bandai-Namco-Research-Motiondataset" in message
+    assert "74ead3ba1ae4696404e6086233779f60de8bf9ef" in message and "350 files" in message
+    assert not (tmp_path / "g.parquet").exists()

@@ -50,23 +50,45 @@ def array_shapes(window: int, joints: int) -> dict[str, tuple[int, ...]]:
     }
 
 
+def array_column(values: np.ndarray, null_rows: np.ndarray | None = None) -> pa.FixedSizeListArray:
+    """(rows, *shape) numbers -> a fixed_size_list<float32> column (row-major), rows masked null if given."""
+    rows = values.shape[0]
+    size = int(np.prod(values.shape[1:]))
+    flat = pa.array(np.ascontiguousarray(values, dtype=np.float32).reshape(-1), type=pa.float32())
+    mask = None if null_rows is None or not null_rows.any() else pa.array(null_rows)
+    return pa.FixedSizeListArray.from_arrays(flat, size, mask=mask) if rows else pa.array([], pa.list_(pa.float32(), size))
+
+
+def with_arrays(table: pa.Table, arrays: dict[str, np.ndarray], meta_update: dict[str, Any]) -> pa.Table:
+    """Add (or replace) array columns and merge their shapes and any other keys into the schema metadata."""
+    meta = json.loads(table.schema.metadata[b"emogait"]) if table.schema.metadata else {}
+    for name, values in arrays.items():
+        column = array_column(values)
+        if name in table.column_names:
+            table = table.set_column(table.column_names.index(name), name, column)
+        else:
+            table = table.append_column(name, column)
+        meta.setdefault("shapes", {})[name] = list(values.shape[1:])
+    for key, value in meta_update.items():
+        if isinstance(value, dict) and isinstance(meta.get(key), dict):
+            meta[key] = {**meta[key], **value}
+        else:
+            meta[key] = value
+    return table.replace_schema_metadata({b"emogait": json.dumps(meta, sort_keys=True).encode()})
+
+
 def to_table(windows: Sequence[dict[str, Any]], skeleton: Skeleton, window: int) -> pa.Table:
     shapes = array_shapes(window, skeleton.joint_count)
     columns: dict[str, pa.Array] = {}
     for name, dtype in SCALAR_COLUMNS.items():
         columns[name] = pa.array([w[name] for w in windows], type=dtype)
     for name, shape in shapes.items():
-        size = int(np.prod(shape))
-        values = [w[name] for w in windows]
-        mask = np.array([v is None for v in values], dtype=bool)
-        flat = np.zeros((len(values), size), dtype=np.float32)
-        for i, v in enumerate(values):
-            if v is not None:
-                flat[i] = np.asarray(v, dtype=np.float32).reshape(size)
-        arr = pa.FixedSizeListArray.from_arrays(pa.array(flat.reshape(-1), type=pa.float32()), size)
-        if mask.any():
-            arr = pa.FixedSizeListArray.from_arrays(arr.values, size, mask=pa.array(mask))
-        columns[name] = arr
+        values = np.zeros((len(windows), *shape), dtype=np.float32)
+        null_rows = np.array([w[name] is None for w in windows], dtype=bool)
+        for i, w in enumerate(windows):
+            if w[name] is not None:
+                values[i] = w[name]
+        columns[name] = array_column(values, null_rows)
     meta = {
         "shapes": {k: list(v) for k, v in shapes.items()},
         "joint_names": list(skeleton.names),

@@ -50,3 +50,21 @@ def full_ingest(tmp_path_factory, manifests, skeleton, ingest_config):
 
 def repo_path(*parts: str) -> Path:
     return REPO.joinpath(*parts)
+
+
+@pytest.fixture(scope="session")
+def annotated(tmp_path_factory, full_ingest, skeleton):
+    """The annotate stage's output for the full ingest, written and read back as the stage does."""
+    from pipeline.annotate import ANNOTATION_META, annotate_windows
+    from pipeline.gait_table import with_arrays
+    from stages.annotate import config
+
+    cfg = config(load_params())
+    table, arrays = full_ingest["table"], full_ingest["arrays"]
+    ann, clips = annotate_windows(table.column("clip_id").to_pylist(), table.column("t_start").to_numpy(),
+                                  arrays["positions"], arrays["rotations"], skeleton, cfg)
+    path = tmp_path_factory.mktemp("annotated") / "gaits.parquet"
+    write_parquet_atomic(with_arrays(table, ann, ANNOTATION_META), path)
+    table2, arrays2 = read_gaits(path)
+    arrays2["clips"] = clips
+    return table2, arrays2

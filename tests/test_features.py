@@ -1,0 +1,124 @@
+"""Affective and movement features: hand-computed values, invariances, gradients, one code path."""
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from pipeline.features import (
+    AFFECTIVE_FEATURES,
+    affective_features,
+    heron_area,
+    movement_features,
+    pose_affective_features,
+)
+from pipeline.kinematics import canonical_positions
+from pipeline.quaternion import axis_angle, qnormalize
+
+D = torch.float64
+
+
+def _rest_pose(skeleton):
+    """The canonical T-pose, root at (0, 1, 0)."""
+    rot = torch.zeros(21, 4, dtype=D)
+    rot[:, 0] = 1
+    return canonical_positions(torch.tensor([0.0, 1.0, 0.0], dtype=D), rot, torch.from_numpy(skeleton.offsets), skeleton.parents)
+
+
+def test_features_of_the_rest_pose_match_hand_computation(skeleton):
+    f = affective_features(_rest_pose(skeleton))
+    o = skeleton.offsets
+    # 7, 8: straight arms -> elbow angles pi; 15, 16: straight legs -> knee angles pi
+    for k in (7, 8, 15, 16):
+        assert float(f[k]) == pytest.approx(math.pi, abs=1e-7)
+    # 9: at the neck between head (straight up) and left shoulder: the shoulder is spine + o13; neck = spine + o11
+    neck_to_shoulder = o[13] - o[11]
+    expected = math.atan2(abs(neck_to_shoulder[0]), neck_to_shoulder[1])  # angle from +Y
+    assert float(f[9]) == pytest.approx(expected, abs=1e-7)
+    assert float(f[10]) == pytest.approx(expected, abs=1e-7)  # mirror image
+    # 2: d(left index, neck) / d(left index, root), positions by hand
+    root = np.array([0.0, 1.0, 0.0])
+    spine = root + o[9] + o[10]
+    neck = spine + o[11]
+    index = spine + o[13] + o[14] + o[15] + o[16]
+    assert float(f[2]) == pytest.approx(np.linalg.norm(index - neck) / np.linalg.norm(index - root), rel=1e-9)
+    # 13: d(left toe, right toe) / d(neck, root): toes at x = +-0.09
+    assert float(f[13]) == pytest.approx(0.18 / np.linalg.norm(neck - root), rel=1e-9)
+    # 14: at the root between the toes: two equal legs, half-angle atan(0.09 / drop)
+    drop = -(o[1][1] + o[2][1] + o[3][1] + o[4][1])
+    toe = np.array([0.09, -drop, 0.13])
+    expected = math.acos(np.dot(toe, toe * [-1, 1, 1]) / np.dot(toe, toe))
+    assert float(f[14]) == pytest.approx(expected, abs=1e-9)
+
+
+def test_heron_area_matches_the_cross_product():
+    g = torch.Generator().manual_seed(3)
+    a, b, c = (torch.randn(200, 3, generator=g, dtype=D) for _ in range(3))
+    cross = 0.5 * torch.linalg.vector_norm(torch.cross(b - a, c - a, dim=-1), dim=-1)
+    assert torch.allclose(heron_area(a, b, c), cross, rtol=1e-9, atol=1e-12)
+
+
+def test_affective_features_ignore_uniform_scale_and_rotation_about_y(full_ingest):
+    pos = torch.from_numpy(full_ingest["arrays"]["positions"][::40]).double()  # ~50 real gaits
+    f = affective_features(pos)
+    turn = axis_angle(torch.tensor([0.0, 1.0, 0.0], dtype=D), torch.tensor(1.234, dtype=D))
+    from pipeline.quaternion import qrot
+
+    moved = qrot(turn.expand(pos.shape[:-1] + (4,)), pos) * 1.7 + torch.tensor([3.0, 0.2, -5.0], dtype=D)
+    assert torch.allclose(affective_features(moved), f, atol=1e-5)
+    m = movement_features(pos, 9)
+    m2 = movement_features(qrot(turn.expand(pos.shape[:-1] + (4,)), pos), 9)
+    assert torch.allclose(m2, m, atol=1e-6)  # the path features are rotation free too
+
+
+def test_gradcheck_forward_kinematics_and_features(skeleton):
+    g = torch.Generator().manual_seed(0)
+    rot = qnormalize(torch.randn(2, 21, 4, generator=g, dtype=D)).requires_grad_(True)
+    root = torch.randn(2, 3, generator=g, dtype=D).requires_grad_(True)
+    offsets = torch.from_numpy(skeleton.offsets)
+    assert torch.autograd.gradcheck(lambda r, q: canonical_positions(r, q, offsets, skeleton.parents), (root, rot))
+    assert torch.autograd.gradcheck(lambda r, q: pose_affective_features(r, q, offsets, skeleton.parents), (root, rot))
+    pos = (torch.randn(1, 12, 21, 3, generator=g, dtype=D) + torch.linspace(0, 1, 12, dtype=D)[:, None, None])
+    assert torch.autograd.gradcheck(lambda p: movement_features(p, 3), (pos.requires_grad_(True),))
+
+
+def test_annotation_equals_the_training_path(annotated, skeleton):
+    """The stored affective features are what the generator's loss computes from the same rotations."""
+    _, arrays = annotated
+    rows = slice(None, None, 25)
+    pos = torch.from_numpy(arrays["positions"][rows]).double()
+    rot = torch.from_numpy(arrays["rotations"][rows]).double()
+    training = pose_affective_features(pos[..., 0, :], rot, torch.from_numpy(skeleton.offsets), skeleton.parents)
+    assert torch.equal(training.float(), torch.from_numpy(arrays["affective"][rows]))
+    # and positions-based features agree wherever the feature is well conditioned (not 6: a near-flat triangle)
+    direct = affective_features(pos)
+    keep = [k for k in range(18) if k != 6]
+    assert torch.allclose(direct[..., keep], training[..., keep], atol=1e-4)
+
+
+def test_feature_table_is_the_design_table():
+    design = {0: ("angle", (17, 9, 13)), 1: ("angle", (19, 9, 15)), 2: ("distance_ratio", (16, 11, 16, 0)),
+              3: ("distance_ratio", (20, 11, 20, 0)), 4: ("distance_ratio", (16, 20, 11, 0)),
+              5: ("area_ratio", (17, 9, 13, 17, 0, 13)), 6: ("area_ratio", (19, 9, 15, 19, 0, 15)),
+              7: ("angle", (13, 14, 15)), 8: ("angle", (17, 18, 19)), 9: ("angle", (12, 11, 13)),
+              10: ("angle", (12, 11, 17)), 11: ("angle", (12, 0, 2)), 12: ("angle", (12, 0, 6)),
+              13: ("distance_ratio", (4, 8, 11, 0)), 14: ("angle", (8, 0, 4)), 15: ("angle", (1, 2, 3)),
+              16: ("angle", (5, 6, 7)), 17: ("area_ratio", (20, 11, 16, 8, 0, 4))}
+    assert dict(enumerate(AFFECTIVE_FEATURES)) == design
+
+
+def test_movement_features_on_a_straight_walk():
+    t = torch.arange(30, dtype=D)
+    pos = torch.zeros(30, 21, 3, dtype=D)
+    pos[:, :, 2] = 0.05 * t[:, None]  # 5 cm per frame along +Z
+    pos[:, 0, 1] = 1.0 + 0.01 * torch.sin(t)
+    pos[:, 1, 0], pos[:, 5, 0] = 0.1, -0.1  # left hip on +X: facing +Z
+    m = movement_features(pos, 5)
+    assert torch.allclose(m[:, 1], torch.full((30,), 0.05, dtype=D))  # s
+    assert torch.allclose(m[:, 2], torch.full((30,), 0.05, dtype=D))  # low-passed s
+    assert torch.allclose(m[:, 3], torch.zeros(30, dtype=D), atol=1e-12)  # heading along the path
+    assert torch.allclose(m[:, 4], torch.zeros(30, dtype=D), atol=1e-12)  # no curvature
+    assert float(m[:, 0].mean()) == pytest.approx(0.0, abs=1e-12)
+    pos[:, 1, 0], pos[:, 5, 0] = -0.1, 0.1  # now facing -Z while moving +Z: walking backwards
+    assert torch.allclose(movement_features(pos, 5)[:, 3], torch.full((30,), math.pi, dtype=D))

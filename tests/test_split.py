@@ -1,0 +1,46 @@
+"""Split by clip: no leaks, stratified, seeded."""
+
+import numpy as np
+
+from pipeline.gait_table import EMOTIONS
+from pipeline.split import assign_splits, dominant_emotion, split_report
+
+FRACTIONS = {"train": 0.8, "val": 0.1, "test": 0.1}
+
+
+def _strata(annotated):
+    table, arrays = annotated
+    clip_ids = table.column("clip_id").to_pylist()
+    strata = [dominant_emotion(None if np.isnan(e).any() else e, EMOTIONS) for e in arrays["emotion"]]
+    return table, clip_ids, strata
+
+
+def test_no_clip_in_two_splits_and_fractions_per_stratum(annotated):
+    table, clip_ids, strata = _strata(annotated)
+    clip_strata = dict(zip(clip_ids, strata))
+    assignment = assign_splits(clip_strata, FRACTIONS, seed=17)
+    report = split_report(clip_ids, table.column("source").to_pylist(), strata, assignment, FRACTIONS, 17)
+    assert report["clips_in_two_splits"] == []
+    for stratum in set(clip_strata.values()):
+        clips = [c for c, s in clip_strata.items() if s == stratum]
+        if len(clips) >= 20:
+            share = {sp: sum(assignment[c] == sp for c in clips) / len(clips) for sp in FRACTIONS}
+            for sp, f in FRACTIONS.items():
+                assert abs(share[sp] - f) < 0.05, (stratum, share)
+    # every labelled emotion is represented in the test split
+    test_emotions = {r["dominant_emotion"] for r in report["counts"] if r["split"] == "test"}
+    assert {"happy", "sad", "angry", "neutral"} <= test_emotions
+
+
+def test_split_is_seeded(annotated):
+    _, clip_ids, strata = _strata(annotated)
+    clip_strata = dict(zip(clip_ids, strata))
+    a = assign_splits(clip_strata, FRACTIONS, seed=17)
+    assert a == assign_splits(dict(reversed(list(clip_strata.items()))), FRACTIONS, seed=17)
+    assert a != assign_splits(clip_strata, FRACTIONS, seed=18)
+
+
+def test_dominant_emotion_reports_ties_and_missing_labels():
+    assert dominant_emotion(np.array([0.1, 0.6, 0.2, 0.1]), EMOTIONS) == "sad"
+    assert dominant_emotion(np.array([0.4, 0.4, 0.1, 0.1]), EMOTIONS) == "tie"
+    assert dominant_emotion(None, EMOTIONS) == "unlabelled"

@@ -124,3 +124,44 @@ def render_gif(motion: Motion, out: str | Path, fps: float = 30.0) -> Path:
     FuncAnimation(fig, draw, frames=len(pos), blit=True).save(out, writer=PillowWriter(fps=fps))
     plt.close(fig)
     return out
+
+
+@dataclass(frozen=True)
+class AnnotatedClip:
+    title: str
+    fps: float
+    foot_heights: np.ndarray  # (T, 4) heel/toe heights, m, in contact_names order
+    contacts: np.ndarray  # (T, 4) 0/1
+    phase: np.ndarray  # (T,) rad
+    contact_names: Sequence[str]
+
+
+def render_annotation(clips: Sequence[AnnotatedClip], out: str | Path, dpi: int = 100) -> Path:
+    """Per clip: heel/toe heights with their contact intervals shaded, and the stepping phase below."""
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig, axes = plt.subplots(2 * len(clips), 1, figsize=(12, 3.2 * len(clips)), squeeze=False,
+                             gridspec_kw={"height_ratios": [2, 1] * len(clips)})
+    for k, clip in enumerate(clips):
+        ax, axp = axes[2 * k, 0], axes[2 * k + 1, 0]
+        t = np.arange(len(clip.phase)) / clip.fps
+        for j, name in enumerate(clip.contact_names):
+            colour = LEFT if name.startswith("left") else RIGHT
+            style = "-" if "heel" in name else "--"
+            ax.plot(t, clip.foot_heights[:, j], style, color=colour, lw=1.2, label=name)
+            down = clip.contacts[:, j] > 0.5
+            ax.fill_between(t, -0.02 - 0.01 * j, -0.01 - 0.01 * j, where=down, color=colour,
+                            alpha=0.9 if "heel" in name else 0.5, step="mid", lw=0)
+        ax.set_ylabel("height (m)")
+        ax.set_title(f"{clip.title}: heel (solid) / toe (dashed) heights; bars = contact", fontsize=9)
+        ax.legend(fontsize=7, ncol=4, loc="upper right")
+        phase = np.asarray(clip.phase, dtype=float).copy()
+        phase[1:][np.diff(phase) < -np.pi] = np.nan  # break the line where the phase wraps to 0
+        axp.plot(t, phase, color=TRUNK, lw=1.2)
+        axp.set_ylim(0, 2 * np.pi)
+        axp.set_yticks([0, np.pi, 2 * np.pi], ["0 (L strike)", "π (R strike)", "2π"])
+        axp.set_xlabel("time (s)")
+    fig.tight_layout()
+    fig.savefig(out, dpi=dpi)
+    plt.close(fig)
+    return out

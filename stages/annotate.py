@@ -7,14 +7,40 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.annotate import ANNOTATION_META, AnnotateConfig, annotate_windows
-from pipeline.contacts import ContactConfig
+from pipeline.contacts import CONTACT_POINTS, ContactConfig
 from pipeline.gait_table import read_gaits, with_arrays, write_json_atomic, write_parquet_atomic
+from pipeline.preview import AnnotatedClip, render_annotation
 from pipeline.skeleton import load_skeleton
 from stages.common import REPO, SKELETON, load_params
 
 IN_GAITS = REPO / "data" / "ingested" / "gaits.parquet"
 OUT_GAITS = REPO / "data" / "annotated" / "gaits.parquet"
 OUT_REPORT = REPO / "reports" / "annotate.json"
+OUT_PLOT = REPO / "reports" / "annotate.png"
+
+
+def plot_examples(table, arrays: dict, annotations: dict, skeleton, cfg: AnnotateConfig, out: Path) -> None:
+    """Contacts and phase of the first labelled walk of each source that has walks."""
+    chosen: dict[str, str] = {}
+    for cid, src, content, method in zip(table.column("clip_id").to_pylist(), table.column("source").to_pylist(),
+                                         table.column("content").to_pylist(), table.column("label_method").to_pylist()):
+        if content == "walk" and (src not in chosen or (method and not chosen[src][1])):
+            chosen[src] = (cid, method)
+    clip_ids = table.column("clip_id").to_pylist()
+    starts = np.round(table.column("t_start").to_numpy() * cfg.fps).astype(int)
+    points = [skeleton.index(n) for n in CONTACT_POINTS]
+    examples = []
+    for src, (cid, _) in sorted(chosen.items())[:3]:
+        rows = [r for r, c in enumerate(clip_ids) if c == cid]
+        frames = starts[rows[-1]] + arrays["positions"].shape[1]
+        heights, contacts, phase = np.zeros((frames, 4)), np.zeros((frames, 4)), np.zeros(frames)
+        for r in rows:
+            s = slice(starts[r], starts[r] + arrays["positions"].shape[1])
+            heights[s] = arrays["positions"][r][:, points, 1]
+            contacts[s] = annotations["contacts"][r]
+            phase[s] = annotations["phase"][r]
+        examples.append(AnnotatedClip(cid, cfg.fps, heights, contacts, phase, CONTACT_POINTS))
+    render_annotation(examples, out)
 
 
 def config(params: dict) -> AnnotateConfig:
@@ -24,12 +50,13 @@ def config(params: dict) -> AnnotateConfig:
 
 
 def main(params_path: Path | None = None, in_gaits: Path = IN_GAITS, out_gaits: Path = OUT_GAITS,
-         out_report: Path = OUT_REPORT) -> dict:
+         out_report: Path = OUT_REPORT, out_plot: Path = OUT_PLOT) -> dict:
     params = load_params(params_path) if params_path else load_params()
     cfg = config(params)
     table, arrays = read_gaits(in_gaits)
+    skeleton = load_skeleton(SKELETON)
     annotations, clips = annotate_windows(table.column("clip_id").to_pylist(), table.column("t_start").to_numpy(),
-                                          arrays["positions"], arrays["rotations"], load_skeleton(SKELETON), cfg)
+                                          arrays["positions"], arrays["rotations"], skeleton, cfg)
     write_parquet_atomic(with_arrays(table, annotations, ANNOTATION_META), out_gaits)
     stance = np.array([c["stance_fraction"] for c in clips.values()])
     contents = dict(zip(table.column("clip_id").to_pylist(), table.column("content").to_pylist()))
@@ -45,6 +72,7 @@ def main(params_path: Path | None = None, in_gaits: Path = IN_GAITS, out_gaits: 
         "per_clip": clips,
     }
     write_json_atomic(report, out_report)
+    plot_examples(table, arrays, annotations, skeleton, cfg, out_plot)
     print(f"annotate: {report['gaits']} gaits from {report['clips']} clips; walk stance fraction median "
           f"{report['stance_fraction']['walk_median']:.2f}; {len(report['clips_without_phase'])} clips without phase")
     return report

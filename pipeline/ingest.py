@@ -24,8 +24,10 @@ import numpy as np
 import torch
 
 from pipeline.kinematics import canonical_positions
+from pipeline.marker_trials import MarkerMotion, NotUsable, canonical_motion
 from pipeline.quaternion import qfix, qrot
 from pipeline.readers.bvh import BvhClip, BvhError, read_bvh
+from pipeline.readers.c3d import C3dError, read_c3d
 from pipeline.resample import resample, window_starts
 from pipeline.retarget import (
     RetargetError,
@@ -72,9 +74,10 @@ class ChunkResult:
 @dataclass
 class _Prepared:
     record: FileRecord
-    clip: BvhClip
+    clip: BvhClip | MarkerMotion  # MarkerMotion: canonical joint positions from C3D markers (metres, Y up)
     label: Label
     joint_map: dict[str, Any]
+    time_offset: float = 0.0  # s from the source clip's start to the first frame used
 
 
 def _sha256(data: bytes) -> str:
@@ -111,21 +114,27 @@ def ingest_chunk(manifest: SourceManifest, skeleton: Skeleton, entries: list, cf
     for rel, pinned in entries:
         rec = FileRecord(source=manifest.name, path=rel, sha256=None)
         result.records.append(rec)
-        item = _read_and_screen(manifest, source_dir, rel, pinned, rec, cfg)
+        item = _read_and_screen(manifest, source_dir, rel, pinned, rec, cfg, skeleton)
         if item is not None:
             prepared.append(item)
     # Files with the same hierarchy layout and joint map are solved together.
     groups: dict[tuple, list[_Prepared]] = defaultdict(list)
+    markers = [item for item in prepared if isinstance(item.clip, MarkerMotion)]
     for item in prepared:
+        if isinstance(item.clip, MarkerMotion):
+            continue
         s = item.clip.skeleton
         groups[(s.names, s.parents, s.channels, repr(item.joint_map))].append(item)
     for items in groups.values():
         result.windows.extend(_retarget_group(manifest, skeleton, items, cfg))
+    if markers:  # marker trials arrive as canonical joint positions already
+        points = torch.from_numpy(np.concatenate([i.clip.points for i in markers])).to(torch.float32)
+        result.windows.extend(_windows_from_points(manifest, skeleton, markers, points, cfg))
     return result
 
 
 def _read_and_screen(manifest: SourceManifest, source_dir: Path, rel: str, pinned: str | None,
-                     rec: FileRecord, cfg: IngestConfig) -> _Prepared | None:
+                     rec: FileRecord, cfg: IngestConfig, skeleton: Skeleton) -> _Prepared | None:
     path = source_dir / rel
     if not path.is_file():
         _quarantine(rec, f"missing: the manifest pins {rel} (sha256 {pinned}) but no file is at {path}; "
@@ -140,6 +149,8 @@ def _read_and_screen(manifest: SourceManifest, source_dir: Path, rel: str, pinne
     if rec.sha256 != pinned:
         _quarantine(rec, f"sha256 mismatch: expected {pinned} (manifest), found {rec.sha256}")
         return None
+    if manifest.format == "c3d":
+        return _screen_c3d(manifest, path, data, rel, rec, cfg, skeleton)
     try:
         clip = read_bvh(path, data)
     except BvhError as err:
@@ -164,6 +175,33 @@ def _read_and_screen(manifest: SourceManifest, source_dir: Path, rel: str, pinne
     return _Prepared(rec, clip, label, manifest.joint_map(rel))
 
 
+def _screen_c3d(manifest: SourceManifest, path: Path, data: bytes, rel: str, rec: FileRecord,
+                cfg: IngestConfig, skeleton: Skeleton) -> _Prepared | None:
+    """A C3D trial: quarantined (malformed), filtered (not a gait, lower-body only, too short) or prepared."""
+    try:
+        clip = read_c3d(path, data)
+    except C3dError as err:
+        _quarantine(rec, f"malformed C3D: {err}")
+        return None
+    rec.frames_in = clip.frames
+    try:
+        label = manifest.label(rel)
+    except ValueError as err:
+        _quarantine(rec, f"label rule: {err}")
+        return None
+    if label.content not in manifest.gait_contents:
+        _filter(rec, f"content {label.content!r} is not a gait for this source (gait contents: "
+                     f"{sorted(manifest.gait_contents)})")
+        return None
+    needed = max(manifest.min_clip_seconds, (cfg.window - 1) / cfg.target_fps)
+    try:
+        motion = canonical_motion(manifest, clip, skeleton.names, needed)
+    except NotUsable as err:
+        _filter(rec, str(err))
+        return None
+    return _Prepared(rec, motion, label, manifest.doc.get("marker_sets", []), time_offset=motion.time_offset)
+
+
 def _retarget_group(manifest: SourceManifest, skeleton: Skeleton, items: list[_Prepared],
                     cfg: IngestConfig) -> list[dict[str, Any]]:
     joint_map = items[0].joint_map
@@ -175,6 +213,12 @@ def _retarget_group(manifest: SourceManifest, skeleton: Skeleton, items: list[_P
         for item in items:
             _quarantine(item.record, f"joint map: {err}")
         return []
+    return _windows_from_points(manifest, skeleton, items, points, cfg)
+
+
+def _windows_from_points(manifest: SourceManifest, skeleton: Skeleton, items: list[_Prepared],
+                         points: torch.Tensor, cfg: IngestConfig) -> list[dict[str, Any]]:
+    """Canonical joint positions (sum of frames, 21, 3) of the items' clips -> rotations, resampling, windows."""
     rotations = bone_rotations(points, skeleton)
     bounds = np.cumsum([0] + [i.clip.frames for i in items])
     clips = []
@@ -234,8 +278,8 @@ def _windows_of_clip(manifest: SourceManifest, skeleton: Skeleton, item: _Prepar
             "source": manifest.name,
             "file": rec.path,
             "sha256": rec.sha256,
-            "t_start": s / cfg.target_fps,
-            "t_end": (e - 1) / cfg.target_fps,
+            "t_start": item.time_offset + s / cfg.target_fps,
+            "t_end": item.time_offset + (e - 1) / cfg.target_fps,
             "source_fps": item.clip.fps,
             "fps": cfg.target_fps,
             "scale": scale,

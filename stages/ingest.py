@@ -36,7 +36,7 @@ def main(params_path: Path | None = None, out_gaits: Path = OUT_GAITS, out_repor
     cfg = IngestConfig(mocap_root=mocap_root(params), target_fps=float(p["target_fps"]), window=int(p["window"]),
                        stride=int(p["stride"]), min_gait_speed=float(p["min_gait_speed"]),
                        chunk_frames=int(p["chunk_frames"]))
-    manifests = load_manifests(sources)
+    manifests = load_manifests(sources, formats=("bvh", "c3d"))
     if not cfg.mocap_root.is_dir():
         sys.exit(missing_data_message(manifests, cfg.mocap_root))
     skeleton = load_skeleton(SKELETON)

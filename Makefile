@@ -25,6 +25,7 @@ test: setup
 
 bench: setup
 	$(BIN)/python benchmarks/ingest.py
+	$(BIN)/python benchmarks/contacts.py
 
 clean:
 	rm -rf $(VENV) data reports .pytest_cache

@@ -3,7 +3,11 @@
 Contacts are decided per point (heel and toe of each foot) from two measurements that transfer between
 datasets and marker sets: the point's speed in m/s, and its height above the point's own stance height
 (its low percentile over the sequence: an ankle joint, a heel marker and a toe joint rest at different
-heights). A point is in contact when it is slow AND low, then a median filter removes flicker.
+heights). A point is in contact when it is slow AND low, then a median filter removes flicker. "Slow" has
+hysteresis: a point lands when its speed drops below ``landing_speed`` and stays down until it exceeds
+``max_speed``. A heel still decelerates through ~1 m/s while it is a centimetre or two above the floor, and a
+toe accelerates through the same speeds as it pushes off, so one threshold puts strikes early or offs early;
+checked against annotated events in reports/contacts.json.
 
 One implementation: annotation (now) and training losses (later) both call these functions.
 """
@@ -19,7 +23,8 @@ CONTACT_POINTS = ("left_heel", "left_toe", "right_heel", "right_toe")
 
 @dataclass(frozen=True)
 class ContactConfig:
-    max_speed: float = 1.0  # m/s: a point moving faster than this is not on the floor
+    max_speed: float = 1.0  # m/s: a point moving faster than this is not (or no longer) on the floor
+    landing_speed: float = 0.8  # m/s: a point comes down only once slower than this (<= max_speed)
     max_height: float = 0.05  # m above the point's stance height
     stance_quantile: float = 0.05  # the point's stance height: this quantile of its height over the sequence
     median_seconds: float = 0.1  # median filter length (rounded to an odd number of frames, >= 1)
@@ -54,9 +59,18 @@ def foot_contacts(points: torch.Tensor, fps: float, cfg: ContactConfig = Contact
     height = points[..., 1]
     stance = torch.quantile(height.movedim(-2, -1).float(), cfg.stance_quantile, dim=-1).to(height.dtype)
     low = height <= stance.unsqueeze(-2) + cfg.max_height
-    raw = (speed <= cfg.max_speed) & low
+    raw = _hysteresis(low & (speed <= cfg.max_speed), low & (speed <= cfg.landing_speed))
     frames = max(1, int(round(cfg.median_seconds * fps)) // 2 * 2 + 1)
     return median_filter(raw, frames)
+
+
+def _hysteresis(stay: torch.Tensor, land: torch.Tensor) -> torch.Tensor:
+    """Flags (..., T, P): inside each run of ``stay``, from its first ``land`` frame to the run's end."""
+    t = torch.arange(stay.shape[-2]).view(-1, 1).expand(stay.shape[-2:])
+    previous = torch.cat([torch.zeros_like(stay[..., :1, :]), stay[..., :-1, :]], dim=-2)
+    run_start = torch.where(stay & ~previous, t, -1).cummax(dim=-2).values
+    last_landing = torch.where(land & stay, t, -1).cummax(dim=-2).values
+    return stay & (last_landing >= run_start)
 
 
 def foot_events(contacts: torch.Tensor, fps: float, cfg: ContactConfig = ContactConfig()) -> dict[str, list[int]]:

@@ -28,6 +28,23 @@ def test_median_filter_removes_single_frame_flicker():
     assert median_filter(flags, 3)[:, 0].tolist() == [0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1]
 
 
+def test_a_point_lands_below_the_landing_speed_and_leaves_above_the_maximum():
+    # one point on the floor (y = 0) decelerating 1.5 -> 0 m/s, resting, then accelerating 0 -> 1.5 m/s
+    speed = np.concatenate([np.linspace(1.5, 0.0, 16), np.zeros(10), np.linspace(0.0, 1.5, 16)])
+    z = np.concatenate([[0.0], np.cumsum((speed[1:] + speed[:-1]) / 2 / 10.0)])  # 10 fps
+    points = torch.zeros(len(z), 1, 3, dtype=torch.float64)
+    points[:, 0, 2] = torch.from_numpy(z)
+    cfg = ContactConfig(max_speed=1.0, landing_speed=0.5, median_seconds=0.0)
+    down = foot_contacts(points, 10.0, cfg)[:, 0].numpy()
+    measured = torch.gradient(points[:, 0, 2], spacing=0.1)[0].numpy()
+    first, last = np.flatnonzero(down)[[0, -1]]
+    assert measured[first] <= 0.5 < measured[first - 1]  # lands once slower than 0.5 m/s, not at 1.0
+    assert measured[last] <= 1.0 < measured[last + 1]  # stays down until faster than 1.0 m/s
+    assert down[first:last + 1].all()
+    single = foot_contacts(points, 10.0, ContactConfig(max_speed=1.0, landing_speed=1.0, median_seconds=0.0))
+    assert np.flatnonzero(single[:, 0].numpy())[0] < first
+
+
 def _synthetic_walk(fps=100.0, cycles=3, stance=0.6, period=1.0):
     """Heel/toe points that rest on the floor for `stance` of each cycle and swing 10 cm up otherwise."""
     t = np.arange(int(cycles * period * fps)) / fps

@@ -40,6 +40,7 @@ def test_dvc_repro_runs_every_stage_then_is_a_noop(tmp_path):
     assert report["files_seen"] >= 361 and report["gaits"] > 1000
     split = json.loads((work / "reports/split.json").read_text())
     assert split["clips_in_two_splits"] == [] and split["totals"]["test"]["gaits"] > 0
+    assert json.loads((work / "reports/contacts.json").read_text())["acceptance"]["passed"]
     assert "up to date" in _run(dvc + ["status"], work, env).stdout
     second = _run(dvc + ["repro"], work, env)
     assert "Running stage" not in second.stdout and "didn't change" in second.stdout

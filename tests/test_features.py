@@ -52,6 +52,51 @@ def test_features_of_the_rest_pose_match_hand_computation(skeleton):
     assert float(f[14]) == pytest.approx(expected, abs=1e-9)
 
 
+# A constructed pose (metres, Y up): left elbow bent 90° (hand forward), right arm hanging straight, left knee
+# bent, right leg straight, head forward of the neck.
+POSE = np.array([
+    [0.0, 1.0, 0.0], [0.1, 0.9, 0.0], [0.1, 0.5, 0.1], [0.1, 0.1, 0.0], [0.1, 0.05, 0.15],  # root, left leg
+    [-0.1, 0.9, 0.0], [-0.1, 0.5, 0.0], [-0.1, 0.1, 0.0], [-0.1, 0.0, 0.15],  # right leg
+    [0.0, 1.1, 0.0], [0.0, 1.3, 0.0], [0.0, 1.5, 0.0], [0.0, 1.6, 0.05],  # lower back, spine, neck, head
+    [0.2, 1.45, 0.0], [0.2, 1.15, 0.0], [0.2, 1.15, 0.3], [0.2, 1.15, 0.4],  # left arm
+    [-0.2, 1.45, 0.0], [-0.2, 1.15, 0.0], [-0.2, 0.9, 0.0], [-0.2, 0.8, 0.0],  # right arm
+])
+
+
+def _angle(a, v, b):
+    u, w = POSE[a] - POSE[v], POSE[b] - POSE[v]
+    return math.acos(np.dot(u, w) / (np.linalg.norm(u) * np.linalg.norm(w)))
+
+
+def _dist(a, b):
+    return float(np.linalg.norm(POSE[a] - POSE[b]))
+
+
+def _area(a, b, c):
+    return 0.5 * float(np.linalg.norm(np.cross(POSE[b] - POSE[a], POSE[c] - POSE[a])))
+
+
+def test_every_feature_of_a_constructed_pose_matches_hand_computation():
+    f = affective_features(torch.from_numpy(POSE)).numpy()
+    expected = [
+        _angle(17, 9, 13), _angle(19, 9, 15),  # 0, 1: shoulders / hands seen from the lower back
+        _dist(16, 11) / _dist(16, 0), _dist(20, 11) / _dist(20, 0), _dist(16, 20) / _dist(11, 0),  # 2-4
+        _area(17, 9, 13) / _area(17, 0, 13), _area(19, 9, 15) / _area(19, 0, 15),  # 5, 6
+        math.pi / 2, math.pi,  # 7, 8: left elbow square, right arm straight
+        _angle(12, 11, 13), _angle(12, 11, 17), _angle(12, 0, 2), _angle(12, 0, 6),  # 9-12
+        _dist(4, 8) / _dist(11, 0), _angle(8, 0, 4),  # 13, 14
+        math.acos(-15 / 17), math.pi,  # 15: left knee (thigh (0,.4,-.1) vs shank (0,-.4,-.1)); 16: right leg straight
+        _area(20, 11, 16) / _area(8, 0, 4),  # 17
+    ]
+    np.testing.assert_allclose(f, expected, rtol=1e-9, atol=1e-7)
+    # a few by plain arithmetic: shoulders 0.4 apart, 0.35 above the lower back -> angle 2 atan(0.2 / 0.35)
+    assert f[0] == pytest.approx(2 * math.atan2(0.2, 0.35), abs=1e-9)
+    # toes 0.2 apart (x) and 0.05 apart (y); neck 0.5 above the root
+    assert f[13] == pytest.approx(math.hypot(0.2, 0.05) / 0.5, rel=1e-9)
+    # head 0.1 up and 0.05 forward of the neck, left shoulder 0.2 out and 0.05 down: angle between them
+    assert f[9] == pytest.approx(math.acos((0.1 * -0.05) / (math.hypot(0.1, 0.05) * math.hypot(0.2, 0.05))), abs=1e-9)
+
+
 def test_heron_area_matches_the_cross_product():
     g = torch.Generator().manual_seed(3)
     a, b, c = (torch.randn(200, 3, generator=g, dtype=D) for _ in range(3))

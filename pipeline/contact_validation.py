@@ -340,7 +340,8 @@ def render_contacts(trials: Sequence[Trial], events: Mapping[str, Mapping[str, l
             ax.set_title(f"{trial.name.rsplit('/', 1)[-1]} - {side} foot ({trial.fps:g} Hz, {trial.marker_set})", fontsize=9)
     from matplotlib.lines import Line2D
 
-    handles = [Line2D([], [], color="tab:blue", label="heel point height (ankle marker where the set has one)"), Line2D([], [], color="tab:orange", label="toe height"),
+    handles = [Line2D([], [], color="tab:blue", label="heel point height (ankle marker where the set has one)"),
+               Line2D([], [], color="tab:orange", label="toe height"),
                Line2D([], [], color="tab:green", label="annotated foot strike"),
                Line2D([], [], color="tab:red", label="annotated foot off"),
                Line2D([], [], marker="v", color="k", linestyle="none", label="ours (strike green, off red)"),

@@ -10,7 +10,8 @@ from __future__ import annotations
 import json
 import os
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -103,28 +104,33 @@ def to_table(windows: Sequence[dict[str, Any]], skeleton: Skeleton, window: int)
     return table.replace_schema_metadata({b"emogait": json.dumps(meta, sort_keys=True).encode()})
 
 
-def write_parquet_atomic(table: pa.Table, path: str | Path) -> None:
-    """Write deterministically (no timestamps; fixed row groups) and atomically (rename into place)."""
-    path = Path(path)
+@contextmanager
+def atomic_path(path: Path) -> Iterator[Path]:
+    """A temporary path beside ``path``, renamed onto it when the block succeeds (removed when it fails), so a
+    reader never sees half a file. Every output of the pipeline is written through this."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     os.close(fd)
     try:
-        pq.write_table(table, tmp, compression="zstd", row_group_size=512, write_statistics=True)
+        yield Path(tmp)
+        os.chmod(tmp, 0o644)  # mkstemp makes 0600; outputs are for everyone to read
         os.replace(tmp, path)
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
 
 
+def write_parquet_atomic(table: pa.Table, path: str | Path) -> None:
+    """Write deterministically (no timestamps; fixed row groups) and atomically."""
+    with atomic_path(Path(path)) as tmp:
+        pq.write_table(table, tmp, compression="zstd", row_group_size=512, write_statistics=True)
+
+
 def write_json_atomic(obj: Any, path: str | Path) -> None:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    with os.fdopen(fd, "w") as fh:
-        json.dump(obj, fh, indent=2, sort_keys=True)
-        fh.write("\n")
-    os.replace(tmp, path)
+    """Sorted keys, strict JSON (a NaN is an error: write None), atomic."""
+    text = json.dumps(obj, indent=2, sort_keys=True, allow_nan=False) + "\n"
+    with atomic_path(Path(path)) as tmp:
+        tmp.write_text(text)
 
 
 def read_metadata(path: str | Path) -> dict[str, Any]:

@@ -16,6 +16,7 @@ This module knows arrays only: not files, not sources, not features.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 
 import torch
@@ -34,19 +35,41 @@ def forward_kinematics(
     translations: (..., J, 3) or (J, 3); row 0 is the root's world position, row j the rest offset o_j.
     parents:      length-J parent indices, topologically ordered, parents[0] == -1.
     Returns positions (..., J, 3) and global rotations (..., J, 4).
+
+    Joints of one depth are computed together (7 levels for the canonical skeleton instead of 20 joints one
+    by one): the same products per joint, so the same numbers, in fewer and larger tensor operations.
     """
     translations = translations.expand(rotations.shape[:-1] + (3,))
-    positions: list[torch.Tensor] = []
-    globals_: list[torch.Tensor] = []
-    for j, p in enumerate(parents):
-        if p < 0:
-            globals_.append(rotations[..., j, :])
-            positions.append(translations[..., j, :])
-        else:
-            g = qmul(globals_[p], rotations[..., j, :])
-            globals_.append(g)
-            positions.append(positions[p] + qrot(g, translations[..., j, :]))
-    return torch.stack(positions, dim=-2), torch.stack(globals_, dim=-2)
+    order, levels, inverse = _levels(tuple(parents), str(rotations.device))
+    globals_ = [rotations[..., :1, :]]
+    positions = [translations[..., :1, :]]
+    for joints, parent_slots in levels:
+        done_g, done_x = torch.cat(globals_, dim=-2), torch.cat(positions, dim=-2)
+        g = qmul(done_g.index_select(-2, parent_slots), rotations.index_select(-2, joints))
+        globals_.append(g)
+        positions.append(done_x.index_select(-2, parent_slots) + qrot(g, translations.index_select(-2, joints)))
+    return (torch.cat(positions, dim=-2).index_select(-2, inverse),
+            torch.cat(globals_, dim=-2).index_select(-2, inverse))
+
+
+@functools.lru_cache(maxsize=32)
+def _levels(parents: tuple[int, ...], device: str) -> tuple[torch.Tensor, tuple, torch.Tensor]:
+    """Joints grouped by depth: (evaluation order, ((joints, their parents' slots in that order), ...),
+    the permutation back to joint order)."""
+    if parents[0] >= 0 or any(p >= j for j, p in enumerate(parents) if j):
+        raise ValueError(f"parents must be topologically ordered with the root first, found {list(parents)}")
+    depth = [0] * len(parents)
+    for j, p in enumerate(parents[1:], start=1):
+        depth[j] = depth[p] + 1
+    order = [0]
+    levels = []
+    for d in range(1, max(depth) + 1):
+        joints = [j for j in range(len(parents)) if depth[j] == d]
+        slots = [order.index(parents[j]) for j in joints]
+        levels.append((torch.tensor(joints, device=device), torch.tensor(slots, device=device)))
+        order += joints
+    inverse = torch.tensor([order.index(j) for j in range(len(parents))], device=device)
+    return torch.tensor(order, device=device), tuple(levels), inverse
 
 
 def rotations_from_bvh_form(joint_rotations: torch.Tensor, parents: Sequence[int]) -> torch.Tensor:

@@ -150,3 +150,30 @@ def qangle(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     """Angle in radians of the rotation taking a to b (geodesic distance). a, b: (..., 4) -> (...)."""
     dot = (a * b).sum(-1).abs().clamp(max=1.0)
     return 2.0 * torch.acos(dot)
+
+
+def quat_to_euler(q: torch.Tensor, order: str, locked_cos: float = 1e-9) -> torch.Tensor:
+    """Intrinsic Euler angles (..., 3), radians, about ``order``'s axes: the inverse of ``euler_to_quat``.
+
+    q: (..., 4) unit quaternions (q and -q give the same angles). Read off the rotation matrix, so it holds at
+    gimbal lock too (there the third angle is set to 0 and the first takes the whole turn); the middle angle is
+    in [-π/2, π/2]. Used by the BVH exporter and by the generator's motion loss (paper Eq. 8).
+    """
+    i, j, k = (_AXIS_INDEX[a] for a in order)
+    sign = 1.0 if (j - i) % 3 == 1 else -1.0  # cyclic (XYZ, YZX, ZXY) or anti-cyclic axis order
+    eye = torch.eye(3, dtype=q.dtype, device=q.device)
+    m = torch.stack([qrot(q, eye[c].expand(q.shape[:-1] + (3,))) for c in range(3)], dim=-1)
+    cos_b = torch.hypot(m[..., i, i], m[..., i, j])
+    beta = torch.atan2(sign * m[..., i, k], cos_b)
+    locked = cos_b < locked_cos
+    alpha = torch.where(locked, torch.atan2(sign * m[..., k, j], m[..., j, j]),
+                        torch.atan2(-sign * m[..., j, k], m[..., k, k]))
+    gamma = torch.where(locked, torch.zeros_like(beta), torch.atan2(-sign * m[..., i, j], m[..., i, i]))
+    return torch.stack((alpha, beta, gamma), dim=-1)
+
+
+def yaw(angle: torch.Tensor) -> torch.Tensor:
+    """Rotations about +Y by ``angle`` (...) radians -> (..., 4); yaw(α) turns +Z towards (sin α, 0, cos α)."""
+    half = 0.5 * angle
+    zero = torch.zeros_like(half)
+    return torch.stack((torch.cos(half), zero, torch.sin(half), zero), dim=-1)

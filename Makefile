@@ -26,6 +26,7 @@ test: setup
 bench: setup
 	$(BIN)/python benchmarks/ingest.py
 	$(BIN)/python benchmarks/contacts.py
+	$(BIN)/python benchmarks/generate.py
 
 clean:
 	rm -rf $(VENV) data reports .pytest_cache

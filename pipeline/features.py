@@ -122,3 +122,19 @@ def movement_features(positions: torch.Tensor, lowpass_frames: int) -> torch.Ten
     turn = torch.linalg.vector_norm(tangent[..., 1:, :] - tangent[..., :-1, :], dim=-1)
     curvature = torch.cat([turn[..., :1], turn], dim=-1)
     return torch.stack((height, speed, moving_average(speed, lowpass_frames), delta, curvature), dim=-1)
+
+
+def path_direction(root_positions: torch.Tensor, heading: torch.Tensor, frames: int,
+                   min_step: float = 1e-3) -> torch.Tensor:
+    """Direction of travel (..., T) in radians about +Y (0 = +Z): the mean ground displacement over a centred
+    window of ``frames`` (about one stride), so the pelvis' side-to-side sway does not swing it; the body heading
+    where the root barely moves (mean step < ``min_step`` m/frame). root_positions (..., T, 3), heading (..., T).
+
+    The generator's reference frame: it predicts the pelvis' rotation relative to this direction.
+    """
+    ground = root_positions[..., [0, 2]]
+    step = ground[..., 1:, :] - ground[..., :-1, :]
+    step = torch.cat([step, step[..., -1:, :]], dim=-2)
+    mean_x, mean_z = moving_average(step[..., 0], frames), moving_average(step[..., 1], frames)
+    moving = torch.sqrt(mean_x ** 2 + mean_z ** 2) > min_step
+    return torch.where(moving, torch.atan2(mean_x, mean_z), heading)

@@ -9,13 +9,24 @@ from pathlib import Path
 
 import yaml
 
-from stages.common import REPO, SKELETON, SOURCES, load_params, mocap_root
+from stages.common import REPO, SOURCES, load_params, mocap_root
 
 
-def _cmd_ingest(args: argparse.Namespace) -> int:
-    from stages import ingest
+STAGES = {  # subcommand -> (module under stages/, help)
+    "ingest": ("ingest", "mocap files -> canonical 60-frame gaits"),
+    "annotate": ("annotate", "contacts, phase, movement and affective features"),
+    "validate-contacts": ("validate_contacts", "foot events vs the C3D trials' annotated events"),
+    "split": ("split", "train/val/test by clip"),
+    "train": ("train", "the generator and its ablations"),
+    "evaluate": ("evaluate", "the generator on the test split"),
+}
 
-    ingest.main(Path(args.params) if args.params else None)
+
+def _cmd_stage(args: argparse.Namespace) -> int:
+    import importlib
+
+    module = importlib.import_module(f"stages.{STAGES[args.command][0]}")
+    module.main(Path(args.params) if args.params else None)
     return 0
 
 
@@ -57,9 +68,10 @@ def _cmd_pin(args: argparse.Namespace) -> int:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="emogait", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
-    p = sub.add_parser("ingest", help="run the ingest stage (what `dvc repro ingest` runs)")
-    p.add_argument("--params", help="params file (default: the repository's params.yaml)")
-    p.set_defaults(func=_cmd_ingest)
+    for name, (module, what) in STAGES.items():
+        p = sub.add_parser(name, help=f"run the {module} stage outside DVC: {what}")
+        p.add_argument("--params", help="params file (default: the repository's params.yaml)")
+        p.set_defaults(func=_cmd_stage)
     p = sub.add_parser("preview", help="stick-figure PNG strip (or .gif) of gaits by id and/or BVH clips")
     p.add_argument("--gait", action="append", help="gait id from the gait table (repeatable)")
     p.add_argument("--gaits", default=str(REPO / "data/ingested/gaits.parquet"), help="gait table (Parquet)")

@@ -7,7 +7,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pyarrow.compute as pc
 
 from pipeline.gait_table import read_gaits, read_metadata
 from pipeline.ingest import IngestConfig, ingest_chunk

@@ -8,7 +8,6 @@ import torch
 
 from pipeline.annotate import AnnotateConfig, annotate_clip, rebuild_clips
 from pipeline.contacts import ContactConfig, foot_contacts, foot_events, median_filter, phase_rate, stepping_phase
-from pipeline.gait_table import read_metadata
 
 
 def test_stepping_phase_is_linear_between_strikes():

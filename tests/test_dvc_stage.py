@@ -1,5 +1,6 @@
 """The real DVC pipeline in a fresh copy of the repository, and the stages' declared dependencies."""
 
+import hashlib
 import json
 import os
 import shutil
@@ -29,6 +30,11 @@ def test_dvc_repro_runs_every_stage_then_is_a_noop(tmp_path):
         shutil.copytree(src, dst, ignore=shutil.ignore_patterns("__pycache__")) if src.is_dir() else shutil.copy(src, dst)
     params = yaml.safe_load((work / "params.yaml").read_text())
     params["data"]["mocap_root"] = str(MOCAP)
+    # The real stages, sized to a test: a few epochs, few agents (the full sizes are measured by `make repro`).
+    params["train"].update(epochs=3, validate_every=3, progress_every=1, batch_size=32)
+    params["train"]["model"].update(gru_hidden=32, versor_hidden=32)
+    params["evaluate"].update(rollout_steps=50, rollout_agents=3, expressiveness_steps=20, transition_steps=20,
+                              transition_agents=2)
     (work / "params.yaml").write_text(yaml.safe_dump(params))
     env = dict(os.environ, DVC_NO_ANALYTICS="1", PATH=f"{Path(sys.executable).parent}:{os.environ['PATH']}")
     _run(["git", "init", "-q"], work, env)
@@ -41,6 +47,14 @@ def test_dvc_repro_runs_every_stage_then_is_a_noop(tmp_path):
     split = json.loads((work / "reports/split.json").read_text())
     assert split["clips_in_two_splits"] == [] and split["totals"]["test"]["gaits"] > 0
     assert json.loads((work / "reports/contacts.json").read_text())["acceptance"]["passed"]
+    trained = json.loads((work / "reports/train.json").read_text())
+    assert set(trained["variants"]) == {"full", "no_affect", "no_root"}
+    for name, v in trained["variants"].items():
+        assert hashlib.sha256((work / v["checkpoint"]).read_bytes()).hexdigest() == v["sha256"]
+    evaluation = json.loads((work / "reports/eval.json").read_text())
+    assert evaluation["split"] == "test" and evaluation["table1_gaits"] == split["totals"]["test"]["gaits"]
+    assert set(evaluation["table1"]) == {"zero_velocity", "constant_velocity", "full", "no_affect", "no_root"}
+    assert (work / "reports/eval.md").read_text().startswith("# Generator evaluation")
     assert "up to date" in _run(dvc + ["status"], work, env).stdout
     second = _run(dvc + ["repro"], work, env)
     assert "Running stage" not in second.stdout and "didn't change" in second.stdout

@@ -1,0 +1,90 @@
+"""Generation benchmark: agent-frames per second of batched generation (pipeline.generation.generate) on this machine.
+
+For each batch size N in ``--agents``: N seed gaits (test-split windows of data/split/gaits.parquet, cycled when
+there are fewer), a sharp-turn path each, a per-frame emotion, ``--steps`` generated frames in ONE call. Timed
+after one warm-up call; the median of ``--repeats`` is reported as agent-frames per second (N × steps / seconds),
+with the torch thread count. The model is data/models/full.pt when it exists (the sizes in params.yaml otherwise:
+speed does not depend on the weights). Printed as JSON and written to benchmarks/out/generate.json.
+
+Run from the repository root:  ``make bench``  or  ``python benchmarks/generate.py [--agents 1 16 64 256]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO))
+
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+
+from pipeline.evaluation import turn_path  # noqa: E402
+from pipeline.gait_table import read_gaits  # noqa: E402
+from pipeline.generation import Seeds, generate, place_paths  # noqa: E402
+from pipeline.generator import EmotiveGaitNet, GeneratorConfig  # noqa: E402
+from pipeline.skeleton import load_skeleton  # noqa: E402
+from pipeline.training import load_checkpoint  # noqa: E402
+from stages.common import SKELETON, load_params  # noqa: E402
+from stages.evaluate import placement_config  # noqa: E402
+
+OUT = REPO / "benchmarks" / "out" / "generate.json"
+GAITS = REPO / "data" / "split" / "gaits.parquet"
+MODEL = REPO / "data" / "models" / "full.pt"
+
+
+def main() -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--agents", type=int, nargs="+", default=[1, 16, 64, 256])
+    parser.add_argument("--steps", type=int, default=60)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--threads", type=int, default=2)
+    args = parser.parse_args()
+    if not GAITS.exists():
+        sys.exit(f"{GAITS} is missing: run `make repro` (or `dvc repro split`) first")
+    torch.set_num_threads(args.threads)
+    params = load_params()
+    skeleton = load_skeleton(SKELETON)
+    offsets = torch.from_numpy(skeleton.offsets).to(torch.float32)
+    if MODEL.exists():
+        model, _, sha = load_checkpoint(MODEL)
+        source = f"{MODEL.relative_to(REPO)} (sha256 {sha[:12]})"
+    else:
+        model = EmotiveGaitNet(GeneratorConfig.from_dict(params["train"]["model"])).eval()
+        source = "untrained, params.yaml train.model sizes"
+    table, arrays = read_gaits(GAITS)
+    test = np.flatnonzero(np.array(table.column("split").to_pylist()) == "test")
+    placement = placement_config(params)
+    prefix = int(params["train"]["prefix"])
+    results = []
+    for n in args.agents:
+        rows = test[np.arange(n) % len(test)]
+        seeds = Seeds.from_arrays(arrays, rows, prefix)
+        paths = place_paths(turn_path(), seeds)
+        emotions = torch.zeros(n, args.steps, 4)
+        emotions[..., 0] = torch.linspace(1.0, 0.0, args.steps)
+        emotions[..., 1] = 1.0 - emotions[..., 0]
+        generate(model, seeds, paths, emotions, offsets, skeleton.parents, placement)  # warm-up
+        times = []
+        for _ in range(args.repeats):
+            start = time.perf_counter()
+            generate(model, seeds, paths, emotions, offsets, skeleton.parents, placement)
+            times.append(time.perf_counter() - start)
+        seconds = statistics.median(times)
+        results.append({"agents": n, "steps": args.steps, "seconds": round(seconds, 4),
+                        "agent_frames_per_s": round(n * args.steps / seconds, 1)})
+    out = {"model": source, "threads": args.threads, "torch": torch.__version__, "results": results}
+    OUT.parent.mkdir(parents=True, exist_ok=True)
+    text = json.dumps(out, indent=2)
+    OUT.write_text(text + "\n")
+    print(text)
+    return out
+
+
+if __name__ == "__main__":
+    main()

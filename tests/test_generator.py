@@ -1,0 +1,195 @@
+"""The generator on real gaits: every loss term trains the network, training is reproducible, generation is
+batched and deterministic, the baselines and the root placement do what they say."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from pipeline.evaluation import constant_velocity, pose_errors, straight_path, turn_path, zero_velocity
+from pipeline.generation import PlacementConfig, Seeds, generate, lateral_deviation, place_paths
+from pipeline.generator import EmotiveGaitNet, GeneratorConfig, LossWeights, generator_losses
+from pipeline.quaternion import euler_to_quat, qangle, qnormalize, quat_to_euler
+from pipeline.training import (
+    GaitTensors,
+    TrainConfig,
+    checkpoint_bytes,
+    load_checkpoint,
+    rollout,
+    targets,
+    train_generator,
+    write_checkpoint,
+)
+
+TINY = GeneratorConfig(affect_layers=(8, 8, 4), movement_layers=(8, 8, 4), gru_hidden=16, versor_hidden=16,
+                       root_hidden=8)
+TERMS = ("motion", "pose", "affective", "root", "foot")
+
+
+@pytest.fixture(scope="module")
+def gaits(annotated):
+    _, arrays = annotated
+    rows = np.arange(0, len(arrays["positions"]), 37)[:48]  # ~48 real windows from all sources
+    return arrays, rows, GaitTensors.from_arrays(arrays, rows)
+
+
+@pytest.fixture(scope="module")
+def offsets(skeleton):
+    return torch.from_numpy(skeleton.offsets).to(torch.float32)
+
+
+def _model(g: GaitTensors, cfg: GeneratorConfig = TINY, seed: int = 0) -> EmotiveGaitNet:
+    torch.manual_seed(seed)
+    model = EmotiveGaitNet(cfg)
+    model.set_statistics(g.affective, g.scalars())
+    return model
+
+
+@pytest.mark.parametrize("term", TERMS)
+def test_every_loss_term_has_gradient_reaching_the_parameters(gaits, offsets, skeleton, term):
+    _, _, g = gaits
+    model = _model(g)
+    pred = rollout(model, g.select(slice(0, 8)), offsets, skeleton.parents, prefix=18, teacher_forcing=0.0)
+    losses = generator_losses(pred, targets(g.select(slice(0, 8)), 18), model, offsets, skeleton.parents)
+    getattr(losses, term).backward()
+    grads = {name: p.grad for name, p in model.named_parameters()}
+    reached = [name for name, grad in grads.items() if grad is not None and float(grad.abs().sum()) > 0]
+    if term == "root":
+        assert any(n.startswith(("fc_root", "fc_h", "fc_s", "fc_delta")) for n in reached), reached
+    else:  # the pose-based terms train the recurrent pose model, through FK and the features
+        assert any(n.startswith("gru") for n in reached) and any(n.startswith("fc_versors") for n in reached), reached
+    # ... and, fed back through the autoregression, the encoders as well
+    assert any(n.startswith(("enc_affect", "enc_movement")) for n in reached), reached
+
+
+def test_the_affective_term_depends_on_the_predictions_not_only_on_the_truth(gaits, offsets, skeleton):
+    """The paper's released code computed it on detached numpy arrays; here moving a prediction moves it."""
+    _, _, g = gaits
+    model = _model(g)
+    batch = g.select(slice(0, 4))
+    pred = rollout(model, batch, offsets, skeleton.parents, prefix=18)
+    base = generator_losses(pred, targets(batch, 18), model, offsets, skeleton.parents).affective
+    bent = dict(pred)
+    bent["q"] = qnormalize(pred["q"] + 0.2 * torch.randn_like(pred["q"], generator=None))
+    moved = generator_losses(bent, targets(batch, 18), model, offsets, skeleton.parents).affective
+    assert float(moved.detach()) != pytest.approx(float(base.detach()))
+
+
+def test_loss_weights_switch_terms_off(gaits, offsets, skeleton):
+    _, _, g = gaits
+    model = _model(g)
+    batch = g.select(slice(0, 4))
+    pred = rollout(model, batch, offsets, skeleton.parents, prefix=18)
+    only_root = LossWeights(motion=0, pose=0, affective=0, root=1, foot=0)
+    losses = generator_losses(pred, targets(batch, 18), model, offsets, skeleton.parents, only_root)
+    assert float(losses.total.detach()) == pytest.approx(float(losses.root.detach()))
+
+
+def test_training_is_reproducible_and_checkpoints_are_byte_identical(gaits, offsets, skeleton, tmp_path):
+    _, _, g = gaits
+    train, val = g.select(slice(0, 32)), g.select(slice(32, 48))
+    cfg = TrainConfig(epochs=3, batch_size=16, batches_per_epoch=0, validate_every=1, seed=3, threads=1, device="cpu")
+    runs = [train_generator(train, val, offsets, skeleton.parents, TINY, cfg, LossWeights()) for _ in range(2)]
+    a, b = (checkpoint_bytes(r.model, {"epochs": 3}) for r in runs)
+    assert a == b
+    assert runs[0].history == runs[1].history
+    assert runs[0].history[-1]["train_total"] < runs[0].history[0]["train_total"]  # it learns
+    other = train_generator(train, val, offsets, skeleton.parents, TINY, TrainConfig(**{**cfg.__dict__, "seed": 4}),
+                            LossWeights())
+    assert checkpoint_bytes(other.model, {"epochs": 3}) != a  # the seed matters
+    sha = write_checkpoint(a, tmp_path / "m.pt")
+    model, extra, sha2 = load_checkpoint(tmp_path / "m.pt")
+    assert sha == sha2 and extra["epochs"] == 3
+    assert all(torch.equal(p, q) for p, q in zip(model.state_dict().values(), runs[0].model.state_dict().values()))
+
+
+def test_generation_is_batched_and_deterministic(gaits, offsets, skeleton):
+    arrays, rows, g = gaits
+    model = _model(g, GeneratorConfig(gru_hidden=32, versor_hidden=32))
+    seeds = Seeds.from_arrays(arrays, rows[:5], prefix=18)
+    paths = place_paths(turn_path(), seeds)
+    emotions = torch.zeros(5, 30, 4)
+    emotions[..., 1] = 1.0
+    emotions[2] = float("nan")  # an unlabelled agent in the same batch
+    together = generate(model, seeds, paths, emotions, offsets, skeleton.parents)
+    again = generate(model, seeds, paths, emotions, offsets, skeleton.parents)
+    assert torch.equal(together.positions, again.positions)
+    assert together.positions.shape == (5, 30, 21, 3) and together.rotations.shape == (5, 30, 21, 4)
+    for n in range(5):  # each agent alone gives what it got in the batch
+        one = Seeds(gaits=seeds.gaits.select(slice(n, n + 1)), heading=seeds.heading[n:n + 1])
+        alone = generate(model, one, paths[n:n + 1], emotions[n:n + 1], offsets, skeleton.parents)
+        assert torch.allclose(alone.positions[0], together.positions[n], atol=1e-5)
+    norms = torch.linalg.vector_norm(together.rotations, dim=-1)
+    assert torch.allclose(norms, torch.ones_like(norms), atol=1e-5)
+    assert torch.equal(together.condition[2], torch.zeros(30, 5))  # NaN emotion -> unlabelled condition
+
+
+def test_bone_lengths_of_generated_gaits_are_the_canonical_ones(gaits, offsets, skeleton):
+    arrays, rows, g = gaits
+    model = _model(g)
+    seeds = Seeds.from_arrays(arrays, rows[:3], prefix=18)
+    out = generate(model, seeds, place_paths(straight_path(), seeds), torch.full((3, 20, 4), 0.25), offsets,
+                   skeleton.parents)
+    for j, p in enumerate(skeleton.parents[1:], start=1):
+        length = torch.linalg.vector_norm(out.positions[:, :, j] - out.positions[:, :, p], dim=-1)
+        assert torch.allclose(length, torch.full_like(length, float(skeleton.bone_lengths[j])), atol=1e-5)
+
+
+def test_paths_start_at_the_seed_and_point_its_way(gaits):
+    arrays, rows, _ = gaits
+    seeds = Seeds.from_arrays(arrays, rows[:6], prefix=18)
+    paths = place_paths(straight_path(10.0), seeds)
+    start = seeds.gaits.root_position[:, -1, [0, 2]]
+    assert torch.allclose(paths[:, 0], start)
+    direction = paths[:, 1] - paths[:, 0]
+    travel = seeds.travel_direction()
+    assert torch.allclose(torch.atan2(direction[:, 0], direction[:, 1]), travel, atol=1e-4)
+    # lateral deviation of points on the path is zero, of a point 1 m aside is 1 m
+    on = paths[:, None, 0] + 0.3 * direction[:, None] / 10.0
+    assert torch.allclose(lateral_deviation(on, paths), torch.zeros(6, 1), atol=1e-5)
+
+
+def test_root_follows_a_turning_path_when_the_network_walks(gaits, offsets, skeleton):
+    """With the root heads zeroed (the residual keeps each root feature at its last value) and the seeds' speed
+    set to a walking pace, the placement follows a 90° turn to within half a metre."""
+    arrays, rows, g = gaits
+    model = _model(g)
+    with torch.no_grad():
+        for head in (model.fc_s, model.fc_h, model.fc_delta):
+            head.weight.zero_()
+            head.bias.zero_()
+    seeds = Seeds.from_arrays(arrays, rows[:4], prefix=18)
+    seeds.gaits.s.fill_(1.3 / 30)
+    paths = place_paths(turn_path(), seeds)
+    out = generate(model, seeds, paths, torch.full((4, 200, 4), 0.25), offsets, skeleton.parents,
+                   PlacementConfig(max_turn_deg_per_s=240.0))
+    assert torch.allclose(out.s, torch.full_like(out.s, 1.3 / 30))
+    root = out.positions[:, :, 0, [0, 2]]
+    travelled = torch.linalg.vector_norm(root[:, 1:] - root[:, :-1], dim=-1).sum(-1)
+    assert torch.allclose(travelled, torch.full((4,), 199 * 1.3 / 30), rtol=1e-4)
+    deviation = lateral_deviation(root, paths)
+    assert float(deviation.max()) < 0.5
+    assert float(deviation[:, -30:].max()) < 0.05  # back on the path after the turn
+
+
+def test_baselines(gaits, offsets, skeleton):
+    _, _, g = gaits
+    zero = zero_velocity(g.q[:, :18], 42)
+    assert torch.equal(zero[:, 10], g.q[:, 17])
+    const = constant_velocity(g.q[:, :18], 42)
+    step = qangle(g.q[:, 17], g.q[:, 16])
+    assert torch.allclose(qangle(const[:, 0], g.q[:, 17]), step, atol=1e-3)
+    errors = pose_errors(g.q[:, 18:], g.q[:, 18:], offsets, skeleton.parents)
+    assert float(errors["position"].max()) == 0.0 and float(errors["rotation"].max()) < 0.1
+
+
+def test_euler_angles_round_trip():
+    q = qnormalize(torch.randn(500, 4, dtype=torch.float64, generator=torch.Generator().manual_seed(1)))
+    back = euler_to_quat(quat_to_euler(q, "ZYX"), "ZYX")
+    assert float(qangle(q, back).max()) < 1e-6
+    assert torch.allclose(quat_to_euler(-q, "ZYX"), quat_to_euler(q, "ZYX"))
+    quarter = euler_to_quat(torch.tensor([[math.pi / 2, 0.0, 0.0]], dtype=torch.float64), "ZYX")
+    assert torch.allclose(quat_to_euler(quarter, "ZYX"), torch.tensor([[math.pi / 2, 0.0, 0.0]], dtype=torch.float64))

@@ -157,6 +157,20 @@ def _read_and_screen(manifest: SourceManifest, source_dir: Path, rel: str, pinne
         _quarantine(rec, f"malformed BVH: {err}")
         return None
     rec.frames_in = clip.frames
+    label = _gait_label(manifest, rel, rec)
+    if label is None:
+        return None
+    duration = (clip.frames - 1) * clip.frame_time
+    needed = max(manifest.min_clip_seconds, (cfg.window - 1) / cfg.target_fps)
+    if duration + 1e-9 < needed:
+        _filter(rec, f"too short: {duration:.2f} s ({clip.frames} frames at {clip.fps:.2f} fps); a clip needs "
+                     f">= {needed:.2f} s for one {cfg.window}-frame window at {cfg.target_fps:g} fps")
+        return None
+    return _Prepared(rec, clip, label, manifest.joint_map(rel))
+
+
+def _gait_label(manifest: SourceManifest, rel: str, rec: FileRecord) -> Label | None:
+    """The file's label, or None after quarantining (no label rule fits) or filtering (content not a gait)."""
     try:
         label = manifest.label(rel)
     except ValueError as err:
@@ -166,13 +180,7 @@ def _read_and_screen(manifest: SourceManifest, source_dir: Path, rel: str, pinne
         _filter(rec, f"content {label.content!r} is not a gait for this source (gait contents: "
                      f"{sorted(manifest.gait_contents)})")
         return None
-    duration = (clip.frames - 1) * clip.frame_time
-    needed = max(manifest.min_clip_seconds, (cfg.window - 1) / cfg.target_fps)
-    if duration + 1e-9 < needed:
-        _filter(rec, f"too short: {duration:.2f} s ({clip.frames} frames at {clip.fps:.2f} fps); a clip needs "
-                     f">= {needed:.2f} s for one {cfg.window}-frame window at {cfg.target_fps:g} fps")
-        return None
-    return _Prepared(rec, clip, label, manifest.joint_map(rel))
+    return label
 
 
 def _screen_c3d(manifest: SourceManifest, path: Path, data: bytes, rel: str, rec: FileRecord,
@@ -184,14 +192,8 @@ def _screen_c3d(manifest: SourceManifest, path: Path, data: bytes, rel: str, rec
         _quarantine(rec, f"malformed C3D: {err}")
         return None
     rec.frames_in = clip.frames
-    try:
-        label = manifest.label(rel)
-    except ValueError as err:
-        _quarantine(rec, f"label rule: {err}")
-        return None
-    if label.content not in manifest.gait_contents:
-        _filter(rec, f"content {label.content!r} is not a gait for this source (gait contents: "
-                     f"{sorted(manifest.gait_contents)})")
+    label = _gait_label(manifest, rel, rec)
+    if label is None:
         return None
     needed = max(manifest.min_clip_seconds, (cfg.window - 1) / cfg.target_fps)
     try:

@@ -4,7 +4,8 @@ One step of the network reads frame t of a gait and predicts frame t + 1:
 
     i1 = [a, m]                                  -> FC_enc1 (3 layers)  -> H1
     i2 = [sin θ, cos θ, ω, s, κ, m]              -> FC_enc2 (3 layers)  -> H2      γ = [FC_enc1; FC_enc2]
-    [q; γ]                                       -> GRU                 -> q̃  -> FC_versors (2 layers) -> q̂
+    [q; γ]                                       -> GRU                 -> q̃
+    [q̃; sin θ, cos θ, sin 2θ, cos 2θ]            -> FC_versors (2 layers) -> q̂
     [h, s, δ; γ]                                 -> FC_root             -> FC_h, FC_s, FC_δ      -> ĥ, ŝ, δ̂
 
 q are the 20 non-root versors of the paper plus one for the pelvis, relative to the direction of travel
@@ -21,6 +22,11 @@ versor and root heads are residual (frame t + 1 = frame t + a learned change), E
 Continuous inputs are standardised with the training set's mean and standard deviation, kept as buffers in
 the model (so a checkpoint carries them). The losses (paper §4.3) use the one forward kinematics and the one
 affective-feature implementation, on the predictions, with gradients.
+
+The stepping phase also reaches the versor head directly (its first two harmonics, as the phase-functioned
+networks use it): without it the free-running limb motion damps over a 200-frame rollout (joint rotation
+1.9 -> 0.6 deg/frame, real walks 2.4) and the walk slows to a halt; with it the motion keeps 2.2 -> 1.6
+deg/frame and the speed holds (measured in reports/eval.json).
 """
 
 from __future__ import annotations
@@ -100,7 +106,7 @@ class EmotiveGaitNet(nn.Module):
         self.enc_movement = _mlp((5 + CONDITION, *cfg.movement_layers))
         gamma = cfg.affect_layers[-1] + cfg.movement_layers[-1]
         self.gru = nn.GRU(4 * VERSORS + gamma, cfg.gru_hidden, num_layers=cfg.gru_layers, batch_first=True)
-        self.fc_versors = _mlp((cfg.gru_hidden, cfg.versor_hidden, 4 * VERSORS), final_activation=False)
+        self.fc_versors = _mlp((cfg.gru_hidden + 4, cfg.versor_hidden, 4 * VERSORS), final_activation=False)
         self.fc_root = _mlp((3 + gamma, cfg.root_hidden))
         self.fc_h, self.fc_s, self.fc_delta = (nn.Linear(cfg.root_hidden, 1) for _ in range(3))
         # Standardisation of the inputs (set from the training data by ``set_statistics``).
@@ -152,7 +158,9 @@ class EmotiveGaitNet(nn.Module):
         q = frames["q"]
         batch, length = q.shape[:2]
         latent, hidden = self.gru(torch.cat([q.reshape(batch, length, 4 * VERSORS), gamma], -1), hidden)
-        q_raw = q + self.fc_versors(latent).reshape(batch, length, VERSORS, 4)
+        theta = frames["theta"][..., None]
+        harmonics = torch.cat([torch.sin(theta), torch.cos(theta), torch.sin(2 * theta), torch.cos(2 * theta)], -1)
+        q_raw = q + self.fc_versors(torch.cat([latent, harmonics], -1)).reshape(batch, length, VERSORS, 4)
         root_latent = self.fc_root(torch.cat([std["h"][..., None], std["s"][..., None], std["delta"][..., None],
                                               gamma], -1))
         out = {"q": qnormalize(q_raw), "q_raw": q_raw}

@@ -24,7 +24,15 @@ import numpy as np
 import torch
 
 from pipeline.contacts import ContactConfig, foot_contacts, foot_events
-from pipeline.markers import CONTACT_RULES, contact_points, evaluate_rule, fill_short_gaps, runs, select_marker_set
+from pipeline.markers import (
+    CONTACT_RULES,
+    MarkerRuleError,
+    contact_points,
+    evaluate_rule,
+    fill_short_gaps,
+    runs,
+    select_marker_set,
+)
 from pipeline.readers.c3d import C3dClip, positions_m_y_up
 
 SIDES = {"left": (0, 1), "right": (2, 3)}  # heel, toe columns in CONTACT_POINTS order
@@ -68,8 +76,6 @@ def prepare_trial(name: str, clip: C3dClip, marker_sets: Sequence[Mapping[str, A
     """Heel/toe tracks of one clip in metres, Y up, gaps filled, floor at y = 0. Raises MarkerRuleError."""
     marker_set = select_marker_set(marker_sets, clip.labels)
     if marker_set is None:
-        from pipeline.markers import MarkerRuleError
-
         raise MarkerRuleError(f"no marker set of the manifest matches the labels {list(clip.labels)[:12]}...")
     max_frames = int(round(cfg.max_gap_seconds * clip.rate))
     gaps = fill_short_gaps(clip.positions, max_frames)

@@ -53,12 +53,7 @@ class Seeds:
 
     @classmethod
     def from_arrays(cls, arrays: dict[str, np.ndarray], rows: np.ndarray, prefix: int) -> Seeds:
-        gaits = GaitTensors.from_arrays(arrays, rows)
-        cut = gaits.select(slice(None))
-        for k, v in cut.__dict__.items():
-            if k != "condition":
-                setattr(cut, k, v[:, :prefix])
-        return cls(gaits=cut, heading=torch.from_numpy(np.ascontiguousarray(arrays["heading"][rows][:, :prefix],
+        return cls(gaits=prefix_of(GaitTensors.from_arrays(arrays, rows), prefix), heading=torch.from_numpy(np.ascontiguousarray(arrays["heading"][rows][:, :prefix],
                                                                               dtype=np.float32)))
 
     def __len__(self) -> int:
@@ -67,6 +62,11 @@ class Seeds:
     def travel_direction(self) -> torch.Tensor:
         """(N,) direction of travel at the last prefix frame (features.path_direction, over the seed window)."""
         return self.gaits.direction[:, -1]
+
+
+def prefix_of(gaits: GaitTensors, frames: int) -> GaitTensors:
+    """The first ``frames`` frames of every gait (the per-gait condition is kept whole)."""
+    return GaitTensors(**{k: (v if k == "condition" else v[:, :frames]) for k, v in gaits.__dict__.items()})
 
 
 @dataclass

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import torch
@@ -79,6 +79,10 @@ def table1(models: dict[str, EmotiveGaitNet], gaits: GaitTensors, heading: torch
     emotions: (N, 4) labels (NaN rows: unlabelled); clip_low/high: see ``pose_errors``."""
     steps = gaits.q.shape[1] - prefix
     truth = gaits.q[:, prefix:]
+    # The root as the paper places it (by ŝ along the given path): the travel frame then follows the ground-truth
+    # path as in training, and root_distance_m measures the predicted speed. The stance-foot placement of
+    # generated gaits moves the root, not the pose, and is measured by the rollouts.
+    placement = replace(placement, root_advance="predicted_speed")
     seeds = Seeds(gaits=prefix_of(gaits, prefix), heading=heading[:, :prefix])
     paths = gaits.root_position[:, prefix - 1:, [0, 2]]
     predictions = {"zero_velocity": zero_velocity(gaits.q[:, :prefix], steps),
@@ -145,10 +149,10 @@ def long_rollouts(model: EmotiveGaitNet, seeds: Seeds, emotions: torch.Tensor, o
 
 def rollout_figures(rollout: Rollout, fps: float, contacts: ContactConfig, real_speed: Sequence[float]) -> dict:
     g = rollout.generated
-    speed = g.s * fps  # (N, S) m/s
+    speed = g.advance * fps  # (N, S) m/s, as placed
+    root = g.positions[:, :, 0, [0, 2]]
     block = min(50, speed.shape[1])
     blocks = speed[:, : speed.shape[1] // block * block].reshape(speed.shape[0], -1, block).mean(-1)
-    root = g.positions[:, :, 0, [0, 2]]
     skate, contact_fraction = skating_speed(g.positions, fps, contacts)
     rotation_change = torch.rad2deg(qangle(g.rotations[:, 1:], g.rotations[:, :-1])).numpy()  # deg / frame
     deviation = lateral_deviation(root, rollout.path)

@@ -3,17 +3,24 @@
 For every agent the network continues its seed's prefix one frame at a time (its own predictions fed back,
 paper §4 and §5.4) and the root is placed from the predicted root features (paper §5.4-5.5):
 
-* speed: the root advances by the predicted ŝ (m/frame, clamped to [0, max_speed]) along its travel direction;
+* advance (``root_advance``): ``stance_foot`` (default) moves the root so that the lowest heel/toe point stays
+  where it stood: the body walks by its own legs and the feet do not skate. The network's ŝ alone advances the
+  root faster than its strides carry it (feet then slide ~3.4x as fast as real stance feet: reports/eval.md), so
+  ŝ is kept as the network's input (it conditions the motion) but no longer places the root.
+  ``predicted_speed`` is the paper's placement: the root advances by ŝ (m/frame, clamped to [0, max_speed])
+  along the travel direction.
 * direction: the travel direction turns towards a point ``lookahead_m`` ahead on the target path (pure
   pursuit), at most ``max_turn_deg_per_s``; so a path sharper than a person turns is cut, and the deviation
-  is measured, not hidden;
+  is measured, not hidden. With ``stance_foot`` the body's steps may run at an angle to the travel direction
+  (a pelvis turned relative to it); that angle, averaged over ``drift_seconds`` and at most ``max_drift_deg``,
+  is steered out so that the body, not the travel frame, follows the path;
 * pelvis: the predicted pelvis versor, which is relative to the direction of travel, turned to the travel
   direction (so the body faces where the network's pelvis says, relative to where it walks: a side-stepping
   seed keeps side-stepping);
 * height: the seed prefix's mean root height plus the predicted deviation ĥ.
 
 The next step's inputs are those of the placed frame: its versors, their affective features, ŝ, ĥ, δ̂, the
-curvature κ of the realised path, the stepping phase continued at the seed's rate, and the condition built
+curvature κ of the travel direction (steps of length ŝ), the stepping phase continued at the seed's rate, and the condition built
 from that frame's emotion (a NaN row: unlabelled, as for unlabelled training gaits).
 
 Deterministic: no random draws; the same inputs give the same outputs.
@@ -28,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from pipeline.generator import EmotiveGaitNet, condition_vectors
+from pipeline.generator import FOOT_JOINTS, EmotiveGaitNet, condition_vectors
 from pipeline.kinematics import canonical_positions
 from pipeline.quaternion import qmul, qrot, yaw
 from pipeline.training import GaitTensors, extrapolated_phase, predicted_affective
@@ -42,6 +49,15 @@ class PlacementConfig:
     lookahead_m: float = 0.6
     max_turn_deg_per_s: float = 240.0
     max_speed_m_s: float = 3.0
+    root_advance: str = "stance_foot"  # or "predicted_speed"
+    stance_softness_m: float = 0.002
+    drift_seconds: float = 1.0
+    max_drift_deg: float = 15.0
+
+    def __post_init__(self) -> None:
+        if self.root_advance not in ("stance_foot", "predicted_speed"):
+            raise ValueError(f"generate.root_advance: expected 'stance_foot' or 'predicted_speed', "
+                             f"found {self.root_advance!r}")
 
 
 @dataclass
@@ -75,6 +91,7 @@ class Generated:
     positions: torch.Tensor  # (N, S, 21, 3)
     h: torch.Tensor  # (N, S) predicted root features
     s: torch.Tensor
+    advance: torch.Tensor  # (N, S) horizontal distance the root moved into each frame (m/frame)
     delta: torch.Tensor
     theta: torch.Tensor  # (N, S) stepping phase fed to the network
     condition: torch.Tensor  # (N, S, 5)
@@ -134,6 +151,27 @@ def lateral_deviation(points: torch.Tensor, paths: torch.Tensor) -> torch.Tensor
     return torch.linalg.vector_norm(points[:, :, None] - (a + u[..., None] * ab), dim=-1).min(-1).values
 
 
+def _root_relative(root_rotation: torch.Tensor, joint_versors: torch.Tensor, height: torch.Tensor,
+                   offsets: torch.Tensor, parents: Sequence[int]) -> torch.Tensor:
+    """World-oriented joint positions (N, 21, 3) of a pose whose root stands at (0, height, 0)."""
+    root = torch.stack((torch.zeros_like(height), height, torch.zeros_like(height)), dim=-1)
+    return canonical_positions(root, torch.cat([root_rotation[:, None], joint_versors], dim=1), offsets, parents)
+
+
+def stance_step(previous_feet: torch.Tensor, feet: torch.Tensor, softness_m: float, max_step: float) -> torch.Tensor:
+    """Ground step (N, 2) of the root that keeps the stance foot where it stood.
+
+    previous_feet, feet: root-relative heel/toe points (N, 4, 3) of two consecutive frames. The stance point is the
+    lowest one (weights exp(-height above the lowest / softness), so two points level with each other share);
+    the root moves by the opposite of that point's root-relative horizontal motion, at most ``max_step``.
+    """
+    height = 0.5 * (previous_feet[..., 1] + feet[..., 1])
+    weight = torch.exp(-(height - height.min(-1, keepdim=True).values) / softness_m)
+    step = (weight[..., None] * (previous_feet - feet)[..., [0, 2]]).sum(1) / weight.sum(1, keepdim=True)
+    length = torch.linalg.vector_norm(step, dim=-1, keepdim=True)
+    return step * (length.clamp(max=max_step) / length.clamp_min(1e-9))
+
+
 @torch.no_grad()
 def generate(model: EmotiveGaitNet, seeds: Seeds, paths: torch.Tensor, emotions: torch.Tensor,
              offsets: torch.Tensor, parents: Sequence[int], cfg: PlacementConfig = PlacementConfig()) -> Generated:
@@ -158,26 +196,44 @@ def generate(model: EmotiveGaitNet, seeds: Seeds, paths: torch.Tensor, emotions:
     travel = seeds.travel_direction()
     base_height = seed.root_position[:, :, 1].mean(-1)
     max_turn = math.radians(cfg.max_turn_deg_per_s) / cfg.fps
-    out = {k: [] for k in ("rotations", "positions", "h", "s", "delta", "heading", "travel", "versors")}
+    out = {k: [] for k in ("rotations", "positions", "h", "s", "advance", "delta", "heading", "travel",
+                                "versors")}
+    feet = list(FOOT_JOINTS)
+    stance_foot = cfg.root_advance == "stance_foot"
+    previous_feet = _root_relative(qmul(yaw(travel), seed.q[:, -1, 0]), seed.q[:, -1, 1:], seed.root_position[:, -1, 1],
+                                   offsets, parents)[:, feet]
+    drift = torch.zeros_like(travel)  # mean angle between the body's realised steps and the travel direction
+    mean_step = torch.zeros(len(travel), 2)  # (sideways, ahead) in the travel frame, exponentially averaged
+    max_drift = math.radians(cfg.max_drift_deg)
     for t in range(steps):
         speed = current["s"].clamp(0.0, cfg.max_speed_m_s / cfg.fps)
         arc = _closest_arc(ground, paths, cumulative)
         target = point_at_arc(paths, cumulative, arc + cfg.lookahead_m)
         wanted = torch.atan2(target[:, 0] - ground[:, 0], target[:, 1] - ground[:, 1])
-        travel = travel + wrap_angle(wanted - travel).clamp(-max_turn, max_turn)
-        step = speed[:, None] * torch.stack((torch.sin(travel), torch.cos(travel)), dim=-1)
-        ground = ground + step
+        travel = travel + wrap_angle(wanted - drift - travel).clamp(-max_turn, max_turn)
+        along = torch.stack((torch.sin(travel), torch.cos(travel)), dim=-1)
         delta = current["delta"].clamp(0.0, math.pi)
         root_rotation = qmul(yaw(travel), current["q"][:, 0])
         forward = qrot(root_rotation, root_rotation.new_tensor([0.0, 0.0, 1.0]).expand(len(travel), 3))
         heading = torch.atan2(forward[:, 0], forward[:, 2])
-        root = torch.stack((ground[:, 0], base_height + current["h"], ground[:, 1]), dim=-1)
         rotations = torch.cat([root_rotation[:, None], current["q"][:, 1:]], dim=1)
-        positions = canonical_positions(root, rotations, offsets, parents)
-        kappa = torch.linalg.vector_norm(step - previous_step, dim=-1)
-        previous_step = step
+        local = _root_relative(root_rotation, current["q"][:, 1:], base_height + current["h"], offsets, parents)
+        nominal = speed[:, None] * along  # the step the predicted root speed asks for
+        if stance_foot:
+            step = stance_step(previous_feet, local[:, feet], cfg.stance_softness_m, cfg.max_speed_m_s / cfg.fps)
+            previous_feet = local[:, feet]
+            relative = torch.stack((along[:, 1] * step[:, 0] - along[:, 0] * step[:, 1], (along * step).sum(-1)), -1)
+            mean_step = mean_step + (relative - mean_step) / (cfg.drift_seconds * cfg.fps)
+            drift = torch.atan2(mean_step[:, 0], mean_step[:, 1].abs().clamp_min(1e-6)).clamp(-max_drift, max_drift)
+        else:
+            step = nominal
+        ground = ground + step
+        positions = local + torch.stack((ground[:, 0], torch.zeros_like(ground[:, 0]), ground[:, 1]), -1)[:, None]
+        kappa = torch.linalg.vector_norm(nominal - previous_step, dim=-1)
+        previous_step = nominal
         for k, v in (("rotations", rotations), ("positions", positions), ("h", current["h"]), ("s", speed),
-                     ("delta", delta), ("heading", heading), ("travel", travel), ("versors", current["q"])):
+                     ("advance", torch.linalg.vector_norm(step, dim=-1)), ("delta", delta), ("heading", heading),
+                     ("travel", travel), ("versors", current["q"])):
             out[k].append(v)
         if t == steps - 1:
             break
@@ -187,6 +243,4 @@ def generate(model: EmotiveGaitNet, seeds: Seeds, paths: torch.Tensor, emotions:
         pred, hidden = model(inputs, hidden)
         current = {k: v[:, 0] for k, v in pred.items()}
     stacked = {k: torch.stack(v, dim=1) for k, v in out.items()}
-    return Generated(rotations=stacked["rotations"], positions=stacked["positions"], h=stacked["h"], s=stacked["s"],
-                     delta=stacked["delta"], theta=theta, condition=condition, heading=stacked["heading"],
-                     travel=stacked["travel"], versors=stacked["versors"])
+    return Generated(theta=theta, condition=condition, **stacked)

@@ -1,12 +1,13 @@
 """DVC stage `evaluate`: the trained generator and its ablations on the **test split** only.
 
 data/split/gaits.parquet + data/models/*.pt -> reports/eval.json (DVC metrics), reports/eval.md (the tables),
-reports/eval_errors.png (error per predicted frame), reports/eval_rollouts.png (200-step paths and speeds),
+reports/eval_errors.png (error per predicted frame), reports/eval_rollouts.png (rollout paths and speeds),
 reports/eval_preview.png (stick figures of generated gaits). See pipeline/evaluation.py for the protocols.
 """
 
 from __future__ import annotations
 
+from dataclasses import asdict
 import sys
 from pathlib import Path
 from typing import Any
@@ -40,7 +41,7 @@ OUT = REPO / "reports"
 
 def placement_config(params: dict[str, Any]) -> PlacementConfig:
     return PlacementConfig(fps=float(params["ingest"]["target_fps"]),
-                           **{k: float(v) for k, v in (params.get("generate") or {}).items()})
+                           **{k: (v if isinstance(v, str) else float(v)) for k, v in (params.get("generate") or {}).items()})
 
 
 def first_window_per_clip(rows: np.ndarray, clip_ids: list[str]) -> np.ndarray:
@@ -75,7 +76,8 @@ def main(params_path: Path | None = None, in_gaits: Path = IN_GAITS, in_models: 
         models[name], _, shas[name] = load_checkpoint(in_models / f"{name}.pt")
     full = models["full"]
     low, high, scale = full.affective_low, full.affective_high, full.affective_std
-    report: dict[str, Any] = {"checkpoints_sha256": shas, "split": "test", "prefix": prefix}
+    report: dict[str, Any] = {"checkpoints_sha256": shas, "split": "test", "prefix": prefix, "fps": placement.fps,
+                              "rollout_steps": int(p["rollout_steps"]), "placement": asdict(placement)}
 
     # Table 1: every test gait, ground-truth path, its own label.
     test = np.flatnonzero(split == "test")
@@ -173,8 +175,9 @@ def markdown(report: dict) -> str:
         lines.append(f"| {name} | {v['pose_error']:.4f} | {v['rotation_error_deg']:.2f} | {v['affective_error']:.4f} "
                      f"| {v.get('root_distance_m', '')} |")
     real = report["real_reference"]
-    lines += ["", f"## {len(next(iter(report['long_horizon'].values()))['straight']['speed_m_s_by_50_frames']) * 50}"
-              "-step rollouts", "",
+    lines += ["", f"## {report['rollout_steps']}-step rollouts", "",
+              f"Root placement: {report['placement']['root_advance']} (params.yaml generate; Table 1 places the root "
+              "by the predicted speed on the ground-truth path).", "",
               f"Real test walks: speed 5-95 % {real['speed_m_s_p5_p95'][0]:.2f}-{real['speed_m_s_p5_p95'][1]:.2f} m/s, "
               f"foot skating {real['foot_skating_m_s']:.3f} m/s (heel/toe horizontal speed while in contact).", "",
               "| model | path | mean speed (m/s) | speed per 50 frames | frozen agents | foot skating (m/s, x real) "
@@ -267,7 +270,7 @@ def plot_rollouts(rollouts: dict, report: dict, path: Path) -> None:
             ax.set_xlabel("x (m, agent's start frame)")
             ax.set_ylabel("z (m)")
         for row, kind in enumerate(("straight", "sharp_turn")):
-            speed = rollouts[name][kind].generated.s.numpy() * 30.0
+            speed = rollouts[name][kind].generated.advance.numpy() * report["fps"]
             axes[row, -1].plot(np.median(speed, 0), label=name)
     lo, hi = report["real_reference"]["speed_m_s_p5_p95"]
     for row, kind in enumerate(("straight", "sharp_turn")):
@@ -277,7 +280,7 @@ def plot_rollouts(rollouts: dict, report: dict, path: Path) -> None:
         ax.set_xlabel("generated frame")
         ax.set_ylabel("m/s")
         ax.legend(fontsize=8)
-    fig.suptitle("200-step rollouts from test-split walks (grey: target path; lines: generated root paths)")
+    fig.suptitle(f"{report['rollout_steps']}-step rollouts from test-split walks (grey: target path; lines: generated root paths)")
     fig.tight_layout()
     fig.savefig(path, dpi=70, metadata={"Software": None})
     plt.close(fig)

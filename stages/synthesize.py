@@ -1,0 +1,179 @@
+"""DVC stage `synthesize`: the 5,000-gait plan and its gaits.
+
+data/split/gaits.parquet + data/models/full.pt -> data/synthesized/gaits.parquet (synthetic gaits with lineage),
+data/synthesized/plan.csv (one row per gait), reports/synthesize.json (counts, novelty tests), reports/synthesize.png.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from pipeline.gait_table import atomic_path, read_gaits, write_json_atomic, write_parquet_atomic
+from pipeline.plan import (
+    build_plan,
+    local_frame,
+    nearest_training_path,
+    novel_emotions,
+    piece_closeness,
+    piece_from,
+    recipe_json,
+    resample,
+    start_pose,
+    training_paths,
+    trajectories_from_params,
+    travel_direction,
+)
+from pipeline.preview import render_trajectories
+from pipeline.publish import synthetic_table
+from pipeline.skeleton import load_skeleton
+from pipeline.synthesis import SynthesisConfig, copied_frames, synthesize
+from pipeline.training import load_checkpoint
+from stages.annotate import config as annotate_config
+from stages.common import REPO, SKELETON, load_params
+from stages.evaluate import placement_config
+
+IN_GAITS = REPO / "data" / "split" / "gaits.parquet"
+IN_MODEL = REPO / "data" / "models" / "full.pt"
+OUT = REPO / "data" / "synthesized"
+OUT_REPORT = REPO / "reports" / "synthesize.json"
+OUT_PLOT = REPO / "reports" / "synthesize.png"
+
+
+def novelty_reference(paths: list, min_compared_m: float) -> list[float]:
+    """How far each training clip's path (from its first window) lies from the nearest other clip's paths."""
+    first: dict[str, np.ndarray] = {}
+    for cid, path in paths:
+        if cid not in first or len(path) > len(first[cid]):
+            first[cid] = path
+    out = []
+    for cid, path in first.items():
+        nearest = nearest_training_path(local_frame(path, path[0], travel_direction(path)), [(c, p) for c, p in paths if c != cid], min_compared_m)
+        if nearest["clip_id"] is not None:
+            out.append(nearest["distance_m"])
+    return out
+
+
+def main(params_path: Path | None = None, in_gaits: Path = IN_GAITS, in_model: Path = IN_MODEL, out: Path = OUT,
+         out_report: Path = OUT_REPORT, out_plot: Path = OUT_PLOT) -> dict[str, Any]:
+    params = load_params(params_path) if params_path else load_params()
+    p = params["synthesize"]
+    torch.set_num_threads(2)
+    skeleton = load_skeleton(SKELETON)
+    table, arrays = read_gaits(in_gaits)
+    split = np.array(table.column("split").to_pylist())
+    content = np.array(table.column("content").to_pylist())
+    gait_ids = table.column("gait_id").to_pylist()
+    clip_ids = table.column("clip_id").to_pylist()
+    fps, window, stride = (float(params["ingest"]["target_fps"]), int(params["ingest"]["window"]),
+                           int(params["ingest"]["stride"]))
+    train = np.flatnonzero(split == "train")
+    novelty = p["novelty"]
+
+    # emotions: novel w.r.t. the distinct training labels
+    labels = arrays["emotion"][train]
+    labels = labels[~np.isnan(labels).any(-1)].astype(np.float64)
+    emotions = novel_emotions(int(p["emotions"]), labels, float(p["min_l1_to_training"]),
+                              np.random.default_rng([int(p["seed"]), 0]))
+    label_set = np.unique(np.round(labels, 6), axis=0)
+    emotion_l1 = np.abs(emotions[:, None] - label_set[None]).sum(-1).min(-1)
+
+    # trajectories: novel w.r.t. the training clips' root paths
+    trajectories = trajectories_from_params(p["trajectories"], float(p["start_span_m"]))
+    starts = np.round(table.column("t_start").to_numpy()[train] * fps).astype(int)
+    paths = training_paths(arrays["root_path"][train], [clip_ids[i] for i in train], starts, window, stride)
+    reference = novelty_reference(paths, float(novelty["min_compared_m"]))
+    shapes = {t.id: nearest_training_path(t.points, paths, float(novelty["min_compared_m"])) for t in trajectories}
+
+    seed_pool = [gait_ids[i] for i in np.flatnonzero((split == "test") & (content == p["seed_content"]))]
+    plan = build_plan(trajectories, emotions, seed_pool, int(p["transition_rounds"]), int(p["seed"]))
+    model, _, checkpoint_sha = load_checkpoint(in_model)
+    cfg = SynthesisConfig(prefix=int(params["train"]["prefix"]), frames=window,
+                          path_ahead_m=float(p["path_ahead_m"]), batch=int(p["batch"]))
+    started = time.perf_counter()
+    synthetic = synthesize(model, arrays, {g: i for i, g in enumerate(gait_ids)}, plan, emotions,
+                           {t.id: t for t in trajectories}, skeleton, placement_config(params),
+                           annotate_config(params), cfg,
+                           progress=lambda done, total: print(f"synthesize: {done}/{total} gaits", flush=True))
+    seconds = time.perf_counter() - started
+    phase_from_condition = [r["gait_id"] for r, f in zip(plan, synthetic.pop("phase_from_condition")) if f]
+
+    # the pieces the gaits walk vs the training windows' paths (reported, not a test)
+    spacing = 0.1
+    piece_len = float(np.percentile(np.linalg.norm(np.diff(synthetic["root_path"], axis=1), axis=-1).sum(1), 50))
+    windows = np.stack([resample(path[:window] - path[0], spacing, piece_len) for _, path in paths
+                        if np.linalg.norm(np.diff(path[:window], axis=0), axis=-1).sum() >= piece_len])
+    windows = np.stack([local_frame(w, w[0], travel_direction(w, 5)) for w in windows])
+    sample = plan[:: max(1, len(plan) // 500)]
+    pieces = np.stack([resample(piece_from(next(t.points for t in trajectories if t.id == r["trajectory_id"]),
+                                           r["start_m"], piece_len), spacing, piece_len) for r in sample])
+    closeness = piece_closeness(pieces, windows)
+
+    recipes = [recipe_json(r["recipe"], emotions) for r in plan]
+    synthetic_rows = synthetic_table(plan, recipes, synthetic, checkpoint_sha, table)
+    write_parquet_atomic(synthetic_rows, out / "gaits.parquet")
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(["gait_id", "trajectory_id", "trajectory_family", "start_m", "seed_gait_id", "plan_seed",
+                     "emotion_recipe"])
+    for r, recipe in zip(plan, recipes):
+        writer.writerow([r["gait_id"], r["trajectory_id"], r["trajectory_family"], r["start_m"], r["seed_gait_id"],
+                         r["plan_seed"], recipe])
+    with atomic_path(out / "plan.csv") as tmp:
+        tmp.write_text(buffer.getvalue())
+
+    sums = synthetic["emotion"].sum(-1)
+    frame_sums = synthetic["emotion_per_frame"].sum(-1)
+    min_distance = float(novelty["min_mean_distance_m"])
+    report = {
+        "gaits": len(plan),
+        "per_trajectory": {t.id: sum(r["trajectory_id"] == t.id for r in plan) for t in trajectories},
+        "single_emotion_gaits": sum(r["recipe"]["kind"] == "single" for r in plan),
+        "transition_gaits": sum(r["recipe"]["kind"] == "transition" for r in plan),
+        "seed_pool": {"split": "test", "content": p["seed_content"], "gaits": len(seed_pool),
+                      "used": len({r["seed_gait_id"] for r in plan})},
+        "checkpoint_sha256": checkpoint_sha,
+        "emotion_rows_max_abs_sum_error": float(max(np.abs(sums - 1).max(), np.abs(frame_sums - 1).max())),
+        "emotion_novelty": {"test": f"L1 distance to every distinct training label > {p['min_l1_to_training']}",
+                            "training_labels": label_set.round(6).tolist(), "min_l1": round(float(emotion_l1.min()), 4),
+                            "passed": bool((emotion_l1 > float(p["min_l1_to_training"])).all())},
+        "trajectory_novelty": {
+            "test": (f"mean distance at equal arc length to every training clip root path (aligned at each window "
+                     f"start, compared where they share >= {novelty['min_compared_m']} m) > {min_distance} m"),
+            "reference_training_nn_distance_m_p50_p90": [round(float(np.percentile(reference, q)), 4) for q in (50, 90)],
+            "compared_training_paths": len(paths),
+            "per_trajectory": {k: {"nearest_m": round(v["distance_m"], 4), "nearest_clip": v["clip_id"],
+                                   "compared_m": v["compared_m"], "novel": v["distance_m"] > min_distance}
+                               for k, v in shapes.items()},
+            "passed": all(v["distance_m"] > min_distance for v in shapes.values()),
+            "gait_pieces": {"length_m": round(piece_len, 3), "sampled": len(sample),
+                            f"within_{novelty['piece_close_m']}_m_of_a_training_window": round(float(
+                                (closeness <= float(novelty["piece_close_m"])).mean()), 4),
+                            "nearest_m_p50": round(float(np.median(closeness)), 4)}},
+        "phase_from_condition": {"gaits": phase_from_condition, "why": "too few foot strikes in prefix + generated "
+                                 "frames to define the stepping phase; the generator's conditioned phase is kept"},
+        "copied_real_frames": copied_frames(synthetic["rotations"], arrays["rotations"]),
+        "finite": bool(all(np.isfinite(v).all() for v in synthetic.values())),
+        "seconds": round(seconds, 2),
+        "agent_frames_per_second": round(len(plan) * window / seconds, 1),
+    }
+    write_json_atomic(report, out_report)
+    points = {t.id: t.points for t in trajectories}
+    placements = []
+    for r in plan:
+        i, direction = start_pose(points[r["trajectory_id"]], r["start_m"])
+        placements.append((r["trajectory_id"], points[r["trajectory_id"]][i], direction))
+    render_trajectories(list(points.items()), synthetic["root_path"], placements, out_plot)
+    print(f"synthesize: {report['gaits']} gaits in {seconds:.1f} s; emotions novel {report['emotion_novelty']['passed']}, "
+          f"trajectories novel {report['trajectory_novelty']['passed']}, copied frames {report['copied_real_frames']}")
+    return report
+
+
+if __name__ == "__main__":
+    main()

@@ -57,8 +57,9 @@ def trajectory_points(pieces: Sequence[Sequence[float]], spacing: float = SPACIN
         ds = length / n
         for i in range(n):
             kappa = k0 + (k1 - k0) * (i + 0.5) / n
+            middle = heading + 0.5 * kappa * ds  # the chord of an arc points along its middle tangent
+            point = point + ds * np.array([math.sin(middle), math.cos(middle)])
             heading += kappa * ds
-            point = point + ds * np.array([math.sin(heading), math.cos(heading)])
             out.append(point)
     return np.asarray(out)
 
@@ -86,24 +87,24 @@ def local_frame(points: np.ndarray, origin: np.ndarray, direction: float) -> np.
 
 def start_pose(points: np.ndarray, start_m: float) -> tuple[int, float]:
     """Index of the trajectory point at (or just before) arc length ``start_m`` and the direction (rad, atan2(x, z))
-    of the segment leaving it (at a corner, the direction before it, so a gait starting there walks the corner)."""
+    in which the trajectory arrives there (+z at its start), so a gait starting at a corner walks the corner."""
     s = arc_lengths(points)
     i = min(max(int(np.searchsorted(s, start_m, side="right")) - 1, 0), len(points) - 2)
-    while i > 0 and np.allclose(points[i + 1], points[i]):
-        i -= 1
-    return i, math.atan2(*(points[i + 1] - points[i]))
+    return i, (0.0 if i == 0 else math.atan2(*(points[i] - points[i - 1])))
 
 
 def piece_from(points: np.ndarray, start_m: float, length_m: float, spacing: float = SPACING_M) -> np.ndarray:
     """The stretch of a trajectory from arc length ``start_m``, ``length_m`` long, in the local frame of its start
     (see ``start_pose``), every ``spacing`` m; past the trajectory's end it goes on straight."""
     i, direction = start_pose(points, start_m)
-    grid = resample(points[i:], spacing, min(length_m, arc_lengths(points[i:])[-1]))
-    missing = int(round(length_m / spacing)) + 1 - len(grid)
-    if missing > 0:
-        last = grid[-1] - grid[-2]
-        grid = np.concatenate([grid, grid[-1] + last * np.arange(1, missing + 1)[:, None]])
-    return local_frame(grid, grid[0], direction)
+    rest = points[i:]
+    s = arc_lengths(rest)
+    grid = np.arange(int(round(length_m / spacing)) + 1) * spacing
+    inside = np.minimum(grid, s[-1])
+    piece = np.stack([np.interp(inside, s, rest[:, 0]), np.interp(inside, s, rest[:, 1])], axis=-1)
+    ahead = rest[-1] - rest[-2]
+    piece += (grid - inside)[:, None] * ahead / np.linalg.norm(ahead)
+    return local_frame(piece, piece[0], direction)
 
 
 # ------------------------------------------------------------------------------------- novelty: trajectories

@@ -55,9 +55,61 @@ def test_dvc_repro_runs_every_stage_then_is_a_noop(tmp_path):
     assert evaluation["split"] == "test" and evaluation["table1_gaits"] == split["totals"]["test"]["gaits"]
     assert set(evaluation["table1"]) == {"zero_velocity", "constant_velocity", "full", "no_affect", "no_root"}
     assert (work / "reports/eval.md").read_text().startswith("# Generator evaluation")
+    published = work / "data/published/synthesized_emotive_gaits"
+    check_published(published, work)
+    data_files = sorted(published.glob("gaits*"))
+    before = {f.name: hashlib.sha256(f.read_bytes()).hexdigest() for f in data_files}
+    _run(dvc + ["repro", "-f", "-s", "synthesize"], work, env)
+    _run(dvc + ["repro", "-f", "-s", "publish"], work, env)
+    assert {f.name: hashlib.sha256(f.read_bytes()).hexdigest() for f in data_files} == before  # byte-identical
     assert "up to date" in _run(dvc + ["status"], work, env).stdout
     second = _run(dvc + ["repro"], work, env)
     assert "Running stage" not in second.stdout and "didn't change" in second.stdout
+
+
+def check_published(published: Path, work: Path) -> None:
+    """The published directory as a user meets it: every reader, the loader's verify, Croissant, checksums."""
+    import duckdb
+    import h5py
+    import numpy as np
+    import pyarrow.dataset as pds
+
+    from pipeline.dataset import GaitDataset, load_dataframe, verify
+
+    assert verify(published) == []
+    subprocess.run(["sha256sum", "--quiet", "-c", "SHA256SUMS"], cwd=published, check=True)
+    validate = subprocess.run([str(Path(sys.executable).parent / "mlcroissant"), "validate", "--jsonld",
+                               str(published / "croissant.json")], capture_output=True, text=True)
+    assert validate.returncode == 0, validate.stderr[-2000:]
+    frame = load_dataframe(published)
+    synthetic = frame[frame["kind"] == "synthetic"]
+    assert len(synthetic) == 5000 and (frame["kind"] == "real").sum() > 1000
+    emotions = np.stack(synthetic["emotion"].to_numpy())
+    assert emotions.shape == (5000, 4) and np.abs(emotions.sum(-1) - 1).max() <= 1e-5
+    per_frame = np.stack(synthetic["emotion_per_frame"].to_numpy())
+    assert per_frame.shape == (5000, 60, 4) and np.abs(per_frame.sum(-1) - 1).max() <= 1e-5
+    assert synthetic[["checkpoint_sha256", "seed_gait_id", "trajectory_id", "emotion_recipe"]].notna().all().all()
+    real = frame[frame["kind"] == "real"]
+    assert real[["source_file", "source_sha256", "t_start", "t_end"]].notna().all().all()
+    assert set(real.loc[real["gait_id"].isin(synthetic["gait_id"]), "gait_id"]) == set()
+    assert set(synthetic["seed_gait_id"]) <= set(real.loc[real["split"] == "test", "gait_id"])
+    table = pds.dataset(sorted(published.glob("gaits-*.parquet")), format="parquet").to_table()
+    assert table.num_rows == len(frame)
+    positions = table["positions"].combine_chunks().flatten().to_numpy().reshape(-1, 60, 21, 3)
+    assert np.array_equal(positions[0], np.asarray(frame["positions"].iloc[0]))
+    count, = duckdb.sql(f"select count(*) from read_parquet('{published}/gaits-*.parquet') "
+                        "where kind = 'synthetic'").fetchone()
+    assert count == 5000
+    with h5py.File(published / "gaits.h5") as h5:
+        assert h5["positions"].shape == (len(frame), 60, 21, 3) and h5["rotations"].shape == (len(frame), 60, 21, 4)
+        assert h5["emotion_per_frame"].shape == (len(frame), 60, 4)
+        assert list(h5.attrs["emotion_order"]) == ["happy", "sad", "angry", "neutral"]
+    item = GaitDataset(published)[len(frame) - 1]
+    assert tuple(item["positions"].shape) == (60, 21, 3)
+    report = json.loads((work / "reports/synthesize.json").read_text())
+    assert report["gaits"] == 5000 and report["copied_real_frames"] == 0 and report["finite"]
+    assert report["emotion_novelty"]["passed"] and report["trajectory_novelty"]["passed"]
+    assert sorted(p.name for p in (published / "previews").glob("*.png"))
 
 
 @pytest.mark.parametrize("stage", sorted(DVC))

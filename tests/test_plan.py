@@ -1,0 +1,107 @@
+"""The synthesis plan: trajectory geometry, novelty of emotions and shapes, the 5,000-gait arithmetic, and the
+published table's lineage, on the real training data."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from pipeline.plan import (
+    arc_lengths,
+    build_plan,
+    frame_emotions,
+    nearest_training_path,
+    novel_emotions,
+    piece_from,
+    training_paths,
+    trajectories_from_params,
+    trajectory_points,
+    transition_rounds,
+)
+from pipeline.synthesis import copied_frames
+from stages.common import load_params
+
+PARAMS = load_params()["synthesize"]
+
+
+def test_an_arc_keeps_its_radius_and_a_corner_turns():
+    points = trajectory_points([[math.pi * 2, 0.5, 0.5]])  # a half circle of radius 2 to the left
+    centre = np.array([2.0, 0.0])
+    assert np.allclose(np.linalg.norm(points - centre, axis=-1), 2.0, atol=1e-3)
+    assert np.allclose(points[-1], [4.0, 0.0], atol=1e-2) and abs(arc_lengths(points)[-1] - 2 * math.pi) < 1e-2
+    corner = trajectory_points([[2, 0, 0], [90], [2, 0, 0]])
+    assert np.allclose(corner[-1], [2.0, 2.0], atol=1e-6)  # +x is the left
+    piece = piece_from(corner, 1.02, 3.0)  # starts at the point at or before 1.02 m: the one at 1 m
+    assert np.allclose(piece[0], 0) and np.allclose(piece[20], [0.0, 1.0], atol=1e-6)
+    assert np.allclose(piece[-1], [2.0, 1.0], atol=1e-6)  # 1 m on, then 2 m after the left turn
+    at_corner = piece_from(corner, 2.02, 1.0)
+    assert np.allclose(piece_from(trajectory_points([[45], [3, 0, 0]]), 0.0, 1.0)[-1],
+                       [math.sqrt(0.5), math.sqrt(0.5)], atol=1e-6)  # a new heading is a turn from the seed's
+    assert np.allclose(at_corner[-1], [1.0, 0.0], atol=1e-6)  # a gait starting at the corner walks it
+
+
+def test_novel_emotions_are_far_from_every_training_label_and_on_the_simplex():
+    labels = np.eye(4)
+    emotions = novel_emotions(100, labels, 0.5, np.random.default_rng(1))
+    assert emotions.shape == (100, 4) and np.allclose(emotions.sum(-1), 1) and (emotions >= 0).all()
+    assert np.abs(emotions[:, None] - labels[None]).sum(-1).min() > 0.5
+    with pytest.raises(ValueError, match="farther than L1"):
+        novel_emotions(5, labels, 1.9, np.random.default_rng(1), max_draws=10_000)  # no simplex point is that far
+
+
+def test_transition_rounds_are_disjoint_and_never_repeat_a_pair():
+    rounds = transition_rounds(100, 3, np.random.default_rng(3))
+    assert [len(r) for r in rounds] == [50, 50, 50]
+    for pairs in rounds:
+        assert sorted(i for p in pairs for i in p) == list(range(100))
+    everything = [frozenset(p) for pairs in rounds for p in pairs]
+    assert len(set(everything)) == 150
+
+
+def test_the_default_plan_has_exactly_5000_gaits_with_their_recipes():
+    trajectories = trajectories_from_params(PARAMS["trajectories"], PARAMS["start_span_m"])
+    emotions = novel_emotions(PARAMS["emotions"], np.eye(4), PARAMS["min_l1_to_training"], np.random.default_rng(0))
+    plan = build_plan(trajectories, emotions, ["a", "b", "c"], PARAMS["transition_rounds"], PARAMS["seed"])
+    assert len(trajectories) == 20 and len(plan) == 5000
+    assert len({r["gait_id"] for r in plan}) == 5000 and len({r["plan_seed"] for r in plan}) == 5000
+    kinds = [r["recipe"]["kind"] for r in plan]
+    assert kinds.count("single") == 2000 and kinds.count("transition") == 3000
+    assert plan == build_plan(trajectories, emotions, ["a", "b", "c"], PARAMS["transition_rounds"], PARAMS["seed"])
+    transition = next(r["recipe"] for r in plan if r["recipe"]["kind"] == "transition")
+    per_frame = frame_emotions(transition, emotions, 60)
+    assert np.allclose(per_frame.sum(-1), 1) and np.allclose(per_frame[0], emotions[transition["from"]])
+    assert np.allclose(per_frame[-1], emotions[transition["to"]])
+
+
+def test_trajectory_novelty_rejects_a_training_path_and_accepts_the_planned_shapes(annotated):
+    table, arrays = annotated
+    clip_ids = table.column("clip_id").to_pylist()
+    starts = np.round(table.column("t_start").to_numpy() * 30).astype(int)
+    paths = training_paths(arrays["root_path"], clip_ids, starts, 60, 30)
+    novelty = PARAMS["novelty"]
+    # a training clip's own path (in its start frame) is found at distance ~0: the test can fail
+    cid, path = next((c, p) for c, p in paths if arc_lengths(p)[-1] > 5)
+    d = path[30] - path[0]
+    angle = math.atan2(d[0], d[1])
+    c, s = math.cos(angle), math.sin(angle)
+    local = np.stack([c * (path[:, 0] - path[0, 0]) - s * (path[:, 1] - path[0, 1]),
+                      s * (path[:, 0] - path[0, 0]) + c * (path[:, 1] - path[0, 1])], -1)
+    assert nearest_training_path(local, paths, novelty["min_compared_m"])["distance_m"] < 1e-6
+    straight = nearest_training_path(trajectory_points([[12, 0, 0]]), paths, novelty["min_compared_m"])
+    assert straight["distance_m"] < novelty["min_mean_distance_m"]  # walking straight ahead is not new
+    for t in trajectories_from_params(PARAMS["trajectories"], PARAMS["start_span_m"])[:4]:
+        assert nearest_training_path(t.points, paths, novelty["min_compared_m"])["distance_m"] > novelty["min_mean_distance_m"]
+
+
+def test_copied_frames_finds_a_copied_pose_even_turned(annotated):
+    _, arrays = annotated
+    real = arrays["rotations"][:20]
+    fake = real[:2].copy()
+    fake[..., 1:, :] += 0.01  # every pose changed
+    assert copied_frames(fake, real) == 0
+    fake[1, 7] = real[5, 3]
+    fake[1, 7, 0] = [0.0, 0.0, 1.0, 0.0]  # the root turned: still a copy
+    assert copied_frames(fake, real) == 1

@@ -97,8 +97,8 @@ def check_published(published: Path, work: Path) -> None:
     assert table.num_rows == len(frame)
     positions = table["positions"].combine_chunks().flatten().to_numpy().reshape(-1, 60, 21, 3)
     assert np.array_equal(positions[0], np.asarray(frame["positions"].iloc[0]))
-    count, = duckdb.sql(f"select count(*) from read_parquet('{published}/gaits-*.parquet') "
-                        "where kind = 'synthetic'").fetchone()
+    (count,), = duckdb.sql(f"select count(*) from read_parquet('{published}/gaits-*.parquet') "
+                           "where kind = 'synthetic'").fetchall()
     assert count == 5000
     with h5py.File(published / "gaits.h5") as h5:
         assert h5["positions"].shape == (len(frame), 60, 21, 3) and h5["rotations"].shape == (len(frame), 60, 21, 4)

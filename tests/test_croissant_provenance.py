@@ -20,7 +20,6 @@ import mlcroissant as mlc
 import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
-import pyarrow.parquet as pq
 import pytest
 import yaml
 
@@ -30,7 +29,6 @@ from pipeline.gait_table import array_column, column_array, write_parquet_atomic
 from pipeline.provenance import PROVENANCE_NAME, prov_document, write_provenance
 from stages.common import REPO
 
-SPLIT = REPO / "data" / "split" / "gaits.parquet"
 LOCK = REPO / "dvc.lock"
 MLCROISSANT = Path(sys.executable).parent / "mlcroissant"
 ARRAYS = ("positions", "rotations", "root_path", "heading", "contacts", "phase", "phase_rate", "affective", "movement")
@@ -38,9 +36,10 @@ CHECKPOINT = "ab" * 32
 RECIPE = json.dumps({"kind": "constant", "emotion": [0.0, 0.0, 1.0, 0.0]})
 
 
-def _real_sample() -> tuple[pa.Table, dict]:
-    """Two labelled and two unlabelled real gaits, from different sources."""
-    table = pq.read_table(SPLIT)
+def _real_sample(table: pa.Table) -> tuple[pa.Table, dict]:
+    """Two labelled and two unlabelled real gaits, from different sources (the annotated table, with a split)."""
+    if "split" not in table.column_names:
+        table = table.append_column("split", pa.array(["train"] * table.num_rows, pa.string()))
     labelled = np.flatnonzero(pc.is_valid(table.column("emotion")).to_numpy(zero_copy_only=False))
     unlabelled = np.flatnonzero(pc.is_null(table.column("emotion")).to_numpy(zero_copy_only=False))
     sources = table.column("source").to_pylist()
@@ -53,9 +52,9 @@ def strings(real_values: list, synthetic_values: list) -> pa.Array:
     return pa.array(list(real_values) + list(synthetic_values), pa.string())
 
 
-def _published_table() -> tuple[pa.Table, dict]:
+def _published_table(annotated_table: pa.Table) -> tuple[pa.Table, dict]:
     """Real gaits plus two synthetic ones (arrays borrowed from real gaits, lineage of a generator)."""
-    real, meta = _real_sample()
+    real, meta = _real_sample(annotated_table)
     n_real, n_synth = real.num_rows, 2
     shapes = meta["shapes"]
     arrays = {name: column_array(real, name, shapes[name]) for name in ARRAYS}
@@ -122,8 +121,8 @@ def _publish(directory: Path, table: pa.Table, meta: dict, shards: int = 1) -> d
 
 
 @pytest.fixture(scope="module")
-def sample() -> tuple[pa.Table, dict]:
-    return _published_table()
+def sample(annotated) -> tuple[pa.Table, dict]:
+    return _published_table(annotated[0])
 
 
 @pytest.fixture(scope="module")

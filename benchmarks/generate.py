@@ -26,12 +26,11 @@ import torch  # noqa: E402
 
 from pipeline.evaluation import turn_path  # noqa: E402
 from pipeline.gait_table import read_gaits  # noqa: E402
-from pipeline.generation import Seeds, generate, place_paths  # noqa: E402
+from pipeline.generation import PlacementConfig, Seeds, generate, place_paths  # noqa: E402
 from pipeline.generator import EmotiveGaitNet, GeneratorConfig  # noqa: E402
 from pipeline.skeleton import load_skeleton  # noqa: E402
 from pipeline.training import load_checkpoint  # noqa: E402
 from stages.common import SKELETON, load_params  # noqa: E402
-from stages.evaluate import placement_config  # noqa: E402
 
 OUT = REPO / "benchmarks" / "out" / "generate.json"
 GAITS = REPO / "data" / "split" / "gaits.parquet"
@@ -59,7 +58,7 @@ def main() -> dict:
         source = "untrained, params.yaml train.model sizes"
     table, arrays = read_gaits(GAITS)
     test = np.flatnonzero(np.array(table.column("split").to_pylist()) == "test")
-    placement = placement_config(params)
+    placement = PlacementConfig.from_params(params.get("generate") or {}, params["ingest"]["target_fps"])
     prefix = int(params["train"]["prefix"])
     results = []
     for n in args.agents:

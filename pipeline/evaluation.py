@@ -150,9 +150,9 @@ def long_rollouts(model: EmotiveGaitNet, seeds: Seeds, emotions: torch.Tensor, o
 def rollout_figures(rollout: Rollout, fps: float, contacts: ContactConfig, real_speed: Sequence[float]) -> dict:
     g = rollout.generated
     speed = g.advance * fps  # (N, S) m/s, as placed
-    root = g.positions[:, :, 0, [0, 2]]
     block = min(50, speed.shape[1])
     blocks = speed[:, : speed.shape[1] // block * block].reshape(speed.shape[0], -1, block).mean(-1)
+    root = g.positions[:, :, 0, [0, 2]]
     skate, contact_fraction = skating_speed(g.positions, fps, contacts)
     rotation_change = torch.rad2deg(qangle(g.rotations[:, 1:], g.rotations[:, :-1])).numpy()  # deg / frame
     deviation = lateral_deviation(root, rollout.path)

@@ -20,8 +20,8 @@ paper §4 and §5.4) and the root is placed from the predicted root features (pa
 * height: the seed prefix's mean root height plus the predicted deviation ĥ.
 
 The next step's inputs are those of the placed frame: its versors, their affective features, ŝ, ĥ, δ̂, the
-curvature κ of the travel direction (steps of length ŝ), the stepping phase continued at the seed's rate, and the condition built
-from that frame's emotion (a NaN row: unlabelled, as for unlabelled training gaits).
+curvature κ of the travel direction (steps of length ŝ), the stepping phase continued at the seed's rate, and
+the condition built from that frame's emotion (a NaN row: unlabelled, as for unlabelled training gaits).
 
 Deterministic: no random draws; the same inputs give the same outputs.
 """
@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import torch
@@ -54,6 +55,11 @@ class PlacementConfig:
     drift_seconds: float = 1.0
     max_drift_deg: float = 15.0
 
+    @classmethod
+    def from_params(cls, generate: dict[str, Any], fps: float) -> PlacementConfig:
+        """From params.yaml ``generate`` (numbers and the ``root_advance`` name) at the gaits' frame rate."""
+        return cls(fps=float(fps), **{k: (v if isinstance(v, str) else float(v)) for k, v in generate.items()})
+
     def __post_init__(self) -> None:
         if self.root_advance not in ("stance_foot", "predicted_speed"):
             raise ValueError(f"generate.root_advance: expected 'stance_foot' or 'predicted_speed', "
@@ -69,8 +75,8 @@ class Seeds:
 
     @classmethod
     def from_arrays(cls, arrays: dict[str, np.ndarray], rows: np.ndarray, prefix: int) -> Seeds:
-        return cls(gaits=prefix_of(GaitTensors.from_arrays(arrays, rows), prefix), heading=torch.from_numpy(np.ascontiguousarray(arrays["heading"][rows][:, :prefix],
-                                                                              dtype=np.float32)))
+        heading = np.ascontiguousarray(arrays["heading"][rows][:, :prefix], dtype=np.float32)
+        return cls(gaits=prefix_of(GaitTensors.from_arrays(arrays, rows), prefix), heading=torch.from_numpy(heading))
 
     def __len__(self) -> int:
         return len(self.gaits)
@@ -196,12 +202,11 @@ def generate(model: EmotiveGaitNet, seeds: Seeds, paths: torch.Tensor, emotions:
     travel = seeds.travel_direction()
     base_height = seed.root_position[:, :, 1].mean(-1)
     max_turn = math.radians(cfg.max_turn_deg_per_s) / cfg.fps
-    out = {k: [] for k in ("rotations", "positions", "h", "s", "advance", "delta", "heading", "travel",
-                                "versors")}
+    out = {k: [] for k in ("rotations", "positions", "h", "s", "advance", "delta", "heading", "travel", "versors")}
     feet = list(FOOT_JOINTS)
     stance_foot = cfg.root_advance == "stance_foot"
-    previous_feet = _root_relative(qmul(yaw(travel), seed.q[:, -1, 0]), seed.q[:, -1, 1:], seed.root_position[:, -1, 1],
-                                   offsets, parents)[:, feet]
+    previous_feet = _root_relative(qmul(yaw(travel), seed.q[:, -1, 0]), seed.q[:, -1, 1:],
+                                   seed.root_position[:, -1, 1], offsets, parents)[:, feet]
     drift = torch.zeros_like(travel)  # mean angle between the body's realised steps and the travel direction
     mean_step = torch.zeros(len(travel), 2)  # (sideways, ahead) in the travel frame, exponentially averaged
     max_drift = math.radians(cfg.max_drift_deg)

@@ -26,9 +26,12 @@ import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
+
+from pipeline.annotate import rebuild_clips
 
 SPACING_M = 0.05
 
@@ -40,7 +43,7 @@ class Trajectory:
     pieces: tuple[tuple[float, ...], ...]
     starts_within_m: float  # gaits start at arc lengths spread over [0, this]
 
-    @property
+    @cached_property
     def points(self) -> np.ndarray:
         return trajectory_points(self.pieces)
 
@@ -68,14 +71,21 @@ def arc_lengths(points: np.ndarray) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=-1))])
 
 
-def resample(points: np.ndarray, spacing: float, length: float | None = None) -> np.ndarray:
-    """Points at equal arc length (``spacing``) along a polyline, up to ``length`` (default: all of it)."""
+def at_arc(points: np.ndarray, arc: np.ndarray) -> np.ndarray:
+    """Points (len(arc), 2) at arc lengths along a polyline; past its end it goes on straight."""
     s = arc_lengths(points)
     keep = np.concatenate([[True], np.diff(s) > 1e-9])
     s, points = s[keep], points[keep]
-    total = s[-1] if length is None else length
-    grid = np.arange(0.0, total + 1e-9, spacing)
-    return np.stack([np.interp(grid, s, points[:, 0]), np.interp(grid, s, points[:, 1])], axis=-1)
+    inside = np.clip(arc, 0.0, s[-1])
+    out = np.stack([np.interp(inside, s, points[:, 0]), np.interp(inside, s, points[:, 1])], axis=-1)
+    ahead = points[-1] - points[-2]
+    return out + (arc - inside)[:, None] * ahead / np.linalg.norm(ahead)
+
+
+def resample(points: np.ndarray, spacing: float, length: float | None = None) -> np.ndarray:
+    """Points at equal arc length (``spacing``) along a polyline, up to ``length`` (default: all of it)."""
+    total = arc_lengths(points)[-1] if length is None else length
+    return at_arc(points, np.arange(int(math.floor(total / spacing + 1e-9)) + 1) * spacing)
 
 
 def local_frame(points: np.ndarray, origin: np.ndarray, direction: float) -> np.ndarray:
@@ -97,82 +107,108 @@ def piece_from(points: np.ndarray, start_m: float, length_m: float, spacing: flo
     """The stretch of a trajectory from arc length ``start_m``, ``length_m`` long, in the local frame of its start
     (see ``start_pose``), every ``spacing`` m; past the trajectory's end it goes on straight."""
     i, direction = start_pose(points, start_m)
-    rest = points[i:]
-    s = arc_lengths(rest)
-    grid = np.arange(int(round(length_m / spacing)) + 1) * spacing
-    inside = np.minimum(grid, s[-1])
-    piece = np.stack([np.interp(inside, s, rest[:, 0]), np.interp(inside, s, rest[:, 1])], axis=-1)
-    ahead = rest[-1] - rest[-2]
-    piece += (grid - inside)[:, None] * ahead / np.linalg.norm(ahead)
+    piece = at_arc(points[i:], np.arange(int(round(length_m / spacing)) + 1) * spacing)
     return local_frame(piece, piece[0], direction)
+
+
+def onto(path: np.ndarray, origin: np.ndarray, direction: float) -> np.ndarray:
+    """A path (T, 2) moved from its own start frame (first point, ``travel_direction``) to start at ``origin``
+    heading ``direction``: the inverse of ``local_frame``."""
+    return local_frame(path, path[0], travel_direction(path) - direction) + origin
 
 
 # ------------------------------------------------------------------------------------- novelty: trajectories
 
+@dataclass(frozen=True)
+class TrainingPaths:
+    """Training root paths, one from every window start of every clip, each in its start frame (start at the
+    origin, direction of travel along +z) and resampled at equal arc length; NaN past a path's end."""
+
+    clip_ids: list[str]
+    points: np.ndarray  # (P, K, 2)
+    lengths_m: np.ndarray  # (P,)
+    spacing: float
+
+
 def training_paths(root_paths: np.ndarray, clip_ids: Sequence[str], starts: np.ndarray, window: int,
-                   stride: int) -> list[tuple[str, np.ndarray]]:
-    """(clip id, clip root path from a window start) for every window start of every clip: root_paths (rows,
-    window, 2) of overlapping windows, starts their first frames."""
-    by_clip: dict[str, list[int]] = {}
-    for row, cid in enumerate(clip_ids):
-        by_clip.setdefault(cid, []).append(row)
-    out = []
-    for cid, rows in by_clip.items():
-        length = max(int(starts[r]) for r in rows) + window
-        path = np.zeros((length, 2))
-        for r in rows:
-            path[int(starts[r]):int(starts[r]) + window] = root_paths[r]
-        for r in rows:
-            out.append((cid, path[int(starts[r]):]))
-    return out
+                   spacing: float = 0.1) -> TrainingPaths:
+    """From overlapping windows: root_paths (rows, window, 2), starts their first frames in the clip."""
+    ids, aligned = [], []
+    for cid, (clip, placed) in rebuild_clips(clip_ids, starts, root_paths, window).items():
+        for _, first in placed:
+            path = clip[first:]
+            ids.append(cid)
+            aligned.append(resample(local_frame(path, path[0], travel_direction(path)), spacing))
+    points = np.full((len(aligned), max(len(a) for a in aligned), 2), np.nan)
+    for i, a in enumerate(aligned):
+        points[i, :len(a)] = a
+    return TrainingPaths(ids, points, np.array([(len(a) - 1) * spacing for a in aligned]), spacing)
 
 
 def travel_direction(path: np.ndarray, frames: int = 30) -> float:
+    """Direction (rad, atan2(x, z)) from a path's start to its point ``frames`` on (1 s of a 30-fps root path)."""
     d = path[min(frames, len(path) - 1)] - path[0]
     return math.atan2(d[0], d[1])
 
 
-def nearest_training_path(points: np.ndarray, paths: list[tuple[str, np.ndarray]], min_compared_m: float,
-                          spacing: float = 0.1) -> dict[str, Any]:
-    """Smallest mean distance at equal arc length between a trajectory and the aligned training paths."""
-    mine = resample(points, spacing)
-    best: dict[str, Any] = {"distance_m": math.inf, "clip_id": None, "compared_m": 0.0, "compared_paths": 0}
-    for cid, path in paths:
-        if arc_lengths(path)[-1] < min_compared_m:
+def nearest_training_path(points: np.ndarray, training: TrainingPaths, min_compared_m: float,
+                          exclude_clip: str | None = None) -> dict[str, Any]:
+    """Smallest mean distance at equal arc length, over their common length, between a path given in its start
+    frame and the training paths at least ``min_compared_m`` long (other than ``exclude_clip``'s)."""
+    mine = resample(points, training.spacing)[: training.points.shape[1]]
+    usable = training.lengths_m >= min_compared_m - 1e-9
+    if exclude_clip is not None:
+        usable &= np.array([c != exclude_clip for c in training.clip_ids])
+    rows = np.flatnonzero(usable)
+    if not len(rows):
+        return {"distance_m": math.inf, "clip_id": None, "compared_m": 0.0, "compared_paths": 0}
+    gaps = np.linalg.norm(training.points[rows, : len(mine)] - mine[None], axis=-1)  # NaN past a path's end
+    distance = np.nanmean(gaps, axis=1)
+    best = int(np.argmin(distance))
+    compared = (int(np.isfinite(gaps[best]).sum()) - 1) * training.spacing
+    return {"distance_m": float(distance[best]), "clip_id": training.clip_ids[rows[best]],
+            "compared_m": round(compared, 2), "compared_paths": len(rows)}
+
+
+def training_nearest_distances(training: TrainingPaths, min_compared_m: float) -> np.ndarray:
+    """The reference for the novelty threshold: how far each training clip's longest path lies from the nearest
+    path of another clip."""
+    longest: dict[str, int] = {}
+    for i, cid in enumerate(training.clip_ids):
+        if cid not in longest or training.lengths_m[i] > training.lengths_m[longest[cid]]:
+            longest[cid] = i
+    out = []
+    for cid, i in longest.items():
+        if training.lengths_m[i] < min_compared_m:
             continue
-        theirs = resample(local_frame(path, path[0], travel_direction(path)), spacing)
-        n = min(len(mine), len(theirs))
-        best["compared_paths"] += 1
-        distance = float(np.linalg.norm(mine[:n] - theirs[:n], axis=-1).mean())
-        if distance < best["distance_m"]:
-            best.update(distance_m=distance, clip_id=cid, compared_m=round((n - 1) * spacing, 2))
-    return best
-
-
-def piece_closeness(pieces: np.ndarray, windows: np.ndarray) -> np.ndarray:
-    """For gait pieces (G, K, 2) and training window paths (W, K', 2), both in their local start frames and at
-    equal arc length: the smallest mean distance of each piece to any window over their common length (G,)."""
-    out = np.full(len(pieces), np.inf)
-    for g, piece in enumerate(pieces):
-        n = min(piece.shape[0], windows.shape[1])
-        d = np.linalg.norm(windows[:, :n] - piece[None, :n], axis=-1).mean(-1)
-        out[g] = d.min()
-    return out
+        path = training.points[i][np.isfinite(training.points[i, :, 0])]
+        nearest = nearest_training_path(path, training, min_compared_m, exclude_clip=cid)
+        if nearest["clip_id"] is not None:
+            out.append(nearest["distance_m"])
+    return np.array(out)
 
 
 # ------------------------------------------------------------------------------------------ novelty: emotions
+
+def distinct_labels(labels: np.ndarray) -> np.ndarray:
+    return np.unique(np.round(labels, 6), axis=0)
+
+
+def l1_to_labels(emotions: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """(N,) L1 distance of each emotion vector to its nearest (distinct) label."""
+    return np.abs(emotions[:, None] - distinct_labels(labels)[None]).sum(-1).min(-1)
+
 
 def novel_emotions(count: int, training_labels: np.ndarray, min_l1: float, rng: np.random.Generator,
                    max_draws: int = 1_000_000) -> np.ndarray:
     """``count`` points of the 4-emotion simplex (uniform, Dirichlet(1,1,1,1)), each farther than ``min_l1`` (L1)
     from every distinct training label; float64 rows summing to 1."""
-    labels = np.unique(np.round(training_labels, 6), axis=0)
     out: list[np.ndarray] = []
     draws = 0
     while len(out) < count:
         batch = rng.dirichlet(np.ones(4), size=256)
         draws += len(batch)
-        far = np.abs(batch[:, None] - labels[None]).sum(-1).min(-1) > min_l1
+        far = l1_to_labels(batch, training_labels) > min_l1
         out.extend(batch[far][: count - len(out)])
         if draws > max_draws:
             raise ValueError(f"only {len(out)} of {count} emotions farther than L1 {min_l1} from the training labels")

@@ -167,31 +167,18 @@ def render_annotation(clips: Sequence[AnnotatedClip], out: str | Path, dpi: int 
     return out
 
 
-def render_trajectories(trajectories: Sequence[tuple[str, np.ndarray]], root_paths: np.ndarray,
-                        placements: Sequence[tuple[str, np.ndarray, float]], out: str | Path, per_trajectory: int = 25,
-                        dpi: int = 100) -> Path:
+def render_trajectories(trajectories: Sequence[tuple[str, np.ndarray, Sequence[np.ndarray]]], out: str | Path,
+                        per_trajectory: int = 25, dpi: int = 100) -> Path:
     """Top views: each planned trajectory (grey) with the root paths of some of its generated gaits drawn where
-    they start on it. placements: per gait (trajectory id, start point (2,), start direction rad); root_paths
-    (G, T, 2) are moved from their own start frame (first frame, direction over the first half second) to it."""
+    they start on it. trajectories: (id, planned points (K, 2), generated root paths (T, 2) placed on it)."""
     cols = 5
     rows = -(-len(trajectories) // cols)
     fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 3.2 * rows), squeeze=False)
-    by_id: dict[str, list[int]] = {}
-    for g, (tid, _, _) in enumerate(placements):
-        by_id.setdefault(tid, []).append(g)
-    for ax, (tid, points) in zip(axes.flat, trajectories):
-        ax.plot(points[:, 0], points[:, 1], color="0.6", lw=3, label="planned")
-        gaits = by_id.get(tid, [])
-        for g in gaits[:: max(1, len(gaits) // per_trajectory)]:
-            path = root_paths[g] - root_paths[g][0]
-            d = path[min(15, len(path) - 1)]
-            own = np.arctan2(d[0], d[1])
-            _, start, direction = placements[g]
-            turn = direction - own
-            c, s = np.cos(turn), np.sin(turn)
-            moved = np.stack([c * path[:, 0] + s * path[:, 1], -s * path[:, 0] + c * path[:, 1]], -1) + start
-            ax.plot(moved[:, 0], moved[:, 1], lw=0.8)
-        ax.set_title(f"{tid} ({len(gaits)} gaits)", fontsize=9)
+    for ax, (tid, points, paths) in zip(axes.flat, trajectories):
+        ax.plot(points[:, 0], points[:, 1], color="0.6", lw=3)
+        for path in paths[:: max(1, len(paths) // per_trajectory)]:
+            ax.plot(path[:, 0], path[:, 1], lw=0.8)
+        ax.set_title(f"{tid} ({len(paths)} gaits)", fontsize=9)
         ax.set_aspect("equal", "datalim")
         ax.tick_params(labelsize=6)
     for ax in list(axes.flat)[len(trajectories):]:

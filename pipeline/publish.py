@@ -13,6 +13,7 @@ Columns, one row per gait:
 from __future__ import annotations
 
 import json
+from collections import Counter
 from collections.abc import Sequence
 from typing import Any
 
@@ -119,6 +120,20 @@ COLUMN_DESCRIPTIONS = {
     "emotion_recipe": "synthetic gaits: JSON recipe (single emotion or transition from/to, with vectors)",
     "plan_seed": "synthetic gaits: the plan row's random seed (draws its seed gait)",
 }
+
+
+def composition(table: pa.Table) -> dict[str, Any]:
+    """Gait counts: all, per kind, per kind and split, real per source, synthetic per trajectory family."""
+    kind, split, source, family = (table.column(c).to_pylist() for c in ("kind", "split", "source",
+                                                                          "trajectory_family"))
+
+    def count(values) -> dict[str, int]:
+        return dict(sorted(Counter(values).items()))
+
+    return {"gaits": table.num_rows, "real": kind.count("real"), "synthetic": kind.count("synthetic"),
+            "by_kind_split": count(f"{k} / {sp}" for k, sp in zip(kind, split)),
+            "real_by_source": count(sr for k, sr in zip(kind, source) if k == "real"),
+            "synthetic_by_family": count(f for k, f in zip(kind, family) if k == "synthetic")}
 
 
 def dataset_card(counts: dict[str, Any], meta: dict[str, Any], licences: dict[str, str], plan: dict[str, Any]) -> str:

@@ -57,7 +57,7 @@ def synthesize(model: EmotiveGaitNet, arrays: dict[str, np.ndarray], row_of: dic
                           :cfg.prefix]).double(), g.theta.double(), skeleton, annotate)
         batch.update(positions=g.positions.numpy(), rotations=g.rotations.numpy(),
                      root_path=g.positions[:, :, 0, [0, 2]].numpy(), heading=g.heading.numpy(),
-                     emotion_per_frame=per_frame, emotion=per_frame.mean(1) / per_frame.mean(1).sum(-1, keepdims=True))
+                     emotion_per_frame=per_frame, emotion=per_frame.mean(1))  # rows sum to 1
         for k, v in batch.items():
             parts.setdefault(k, []).append(v if v.dtype == bool else np.asarray(v, dtype=np.float32))
         if progress:

@@ -7,8 +7,8 @@ reports/eval_preview.png (stick figures of generated gaits). See pipeline/evalua
 
 from __future__ import annotations
 
-from dataclasses import asdict
 import sys
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -39,11 +39,6 @@ IN_MODELS = REPO / "data" / "models"
 OUT = REPO / "reports"
 
 
-def placement_config(params: dict[str, Any]) -> PlacementConfig:
-    return PlacementConfig(fps=float(params["ingest"]["target_fps"]),
-                           **{k: (v if isinstance(v, str) else float(v)) for k, v in (params.get("generate") or {}).items()})
-
-
 def first_window_per_clip(rows: np.ndarray, clip_ids: list[str]) -> np.ndarray:
     seen, out = set(), []
     for r in rows:
@@ -58,7 +53,7 @@ def main(params_path: Path | None = None, in_gaits: Path = IN_GAITS, in_models: 
     params = load_params(params_path) if params_path else load_params()
     p = params["evaluate"]
     torch.set_num_threads(int(p.get("threads", 2)))
-    placement = placement_config(params)
+    placement = PlacementConfig.from_params(params.get("generate") or {}, params["ingest"]["target_fps"])
     contacts = ContactConfig(**{k: float(v) for k, v in params["annotate"]["contacts"].items()})
     prefix = int(params["train"]["prefix"])
     skeleton = load_skeleton(SKELETON)
@@ -280,7 +275,8 @@ def plot_rollouts(rollouts: dict, report: dict, path: Path) -> None:
         ax.set_xlabel("generated frame")
         ax.set_ylabel("m/s")
         ax.legend(fontsize=8)
-    fig.suptitle(f"{report['rollout_steps']}-step rollouts from test-split walks (grey: target path; lines: generated root paths)")
+    fig.suptitle(f"{report['rollout_steps']}-step rollouts from test-split walks (grey: target path; "
+                 "lines: generated root paths)")
     fig.tight_layout()
     fig.savefig(path, dpi=70, metadata={"Software": None})
     plt.close(fig)

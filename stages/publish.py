@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import shutil
-from collections import Counter
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +20,7 @@ from pipeline.dataset import HDF5_NAME, verify, write_hdf5_atomic, write_sha256s
 from pipeline.gait_table import atomic_path, column_array, read_gaits, write_json_atomic, write_parquet_atomic
 from pipeline.preview import Motion, render_filmstrip
 from pipeline.provenance import prov_document, write_provenance
-from pipeline.publish import COLUMN_DESCRIPTIONS, dataset_card, published_table, real_table
+from pipeline.publish import COLUMN_DESCRIPTIONS, composition, dataset_card, published_table, real_table
 from stages.common import REPO, SOURCES, load_params
 
 IN_REAL = REPO / "data" / "split" / "gaits.parquet"
@@ -57,12 +56,10 @@ RAI = {
 }
 
 
-def _arrays(table: pa.Table, meta: dict[str, Any]) -> dict[str, np.ndarray]:
-    return {name: column_array(table, name, shape) for name, shape in meta["shapes"].items()}
-
-
-def previews(table: pa.Table, arrays: dict[str, np.ndarray], meta: dict[str, Any], out: Path) -> list[str]:
+def previews(table: pa.Table, meta: dict[str, Any], out: Path) -> list[str]:
     """Stick figures: a sample per trajectory family, per dominant emotion, and a transition."""
+    positions = column_array(table, "positions", meta["shapes"]["positions"])
+    emotion = column_array(table, "emotion", meta["shapes"]["emotion"])
     kind = np.array(table.column("kind").to_pylist())
     family = table.column("trajectory_family").to_pylist()
     recipes = [json.loads(r) if r else None for r in table.column("emotion_recipe").to_pylist()]
@@ -70,13 +67,13 @@ def previews(table: pa.Table, arrays: dict[str, np.ndarray], meta: dict[str, Any
     names, parents = meta["joint_names"], meta["parents"]
 
     def motion(i: int, title: str) -> Motion:
-        return Motion(f"{ids[i]}: {title}", arrays["positions"][i], parents, names)
+        return Motion(f"{ids[i]}: {title}", positions[i], parents, names)
 
     synthetic = np.flatnonzero(kind == "synthetic")
+    single = [i for i in synthetic if recipes[i]["kind"] == "single"]
     first_of_family: dict[str, int] = {}
-    for i in synthetic:
-        if recipes[i]["kind"] == "single":
-            first_of_family.setdefault(family[i], i)
+    for i in single:
+        first_of_family.setdefault(family[i], i)
     written = []
     out.mkdir(parents=True, exist_ok=True)
     for chunk in range(0, len(first_of_family), 5):
@@ -84,16 +81,14 @@ def previews(table: pa.Table, arrays: dict[str, np.ndarray], meta: dict[str, Any
         path = out / f"families_{chunk // 5 + 1}.png"
         render_filmstrip([motion(i, f) for f, i in items], path)
         written.append(path.name)
-    emotion = arrays["emotion"]
     per_emotion = []
     for k, name in enumerate(meta["emotion_order"]):
-        single = [i for i in synthetic if recipes[i]["kind"] == "single"]
         i = max(single, key=lambda j: emotion[j, k])
         per_emotion.append(motion(i, f"most {name} ({emotion[i, k]:.2f})"))
     render_filmstrip(per_emotion, out / "emotions.png")
     transition = next(i for i in synthetic if recipes[i]["kind"] == "transition")
-    render_filmstrip([motion(transition, "transition " + " -> ".join(
-        str([round(v, 2) for v in recipes[transition][f"{k}_vector"]]) for k in ("from", "to")))], out / "transition.png")
+    ends = " -> ".join(str([round(v, 2) for v in recipes[transition][f"{k}_vector"]]) for k in ("from", "to"))
+    render_filmstrip([motion(transition, f"transition {ends}")], out / "transition.png")
     return written + ["emotions.png", "transition.png"]
 
 
@@ -110,21 +105,13 @@ def main(params_path: Path | None = None, out: Path = OUT, out_report: Path = OU
     shard = int(p["shard_gaits"])
     for n, first in enumerate(range(0, table.num_rows, shard)):
         write_parquet_atomic(table.slice(first, shard), out / f"gaits-{n:03d}.parquet")
-    arrays = _arrays(table, meta)
-    write_hdf5_atomic(table, arrays, out / HDF5_NAME, meta)
-    preview_files = previews(table, arrays, meta, out / "previews")
+    write_hdf5_atomic(table, {}, out / HDF5_NAME, meta)
+    preview_files = previews(table, meta, out / "previews")
 
-    kind = table.column("kind").to_pylist()
-    split = table.column("split").to_pylist()
-    source = table.column("source").to_pylist()
     licences = {m["name"]: m.get("licence", "see the source") for m in
                 (yaml.safe_load(f.read_text()) for f in sorted(SOURCES.glob("*.yaml")))}
     s = params["synthesize"]
-    counts = {"gaits": table.num_rows, "real": kind.count("real"), "synthetic": kind.count("synthetic"),
-              "by_kind_split": dict(sorted(Counter(f"{k} / {sp}" for k, sp in zip(kind, split)).items())),
-              "real_by_source": dict(sorted(Counter(sr for k, sr in zip(kind, source) if k == "real").items())),
-              "synthetic_by_family": dict(sorted(Counter(f for k, f in zip(kind, table.column("trajectory_family")
-                                                                             .to_pylist()) if k == "synthetic").items()))}
+    counts = composition(table)
     plan = {"trajectories": len(s["trajectories"]), "emotions": int(s["emotions"]),
             "transitions": int(s["emotions"]) // 2 * int(s["transition_rounds"]),
             "min_l1": s["min_l1_to_training"], "prefix": int(params["train"]["prefix"])}

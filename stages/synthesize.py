@@ -16,19 +16,20 @@ import numpy as np
 import torch
 
 from pipeline.gait_table import atomic_path, read_gaits, write_json_atomic, write_parquet_atomic
+from pipeline.generation import PlacementConfig
 from pipeline.plan import (
     build_plan,
-    local_frame,
+    distinct_labels,
+    l1_to_labels,
     nearest_training_path,
     novel_emotions,
-    piece_closeness,
+    onto,
     piece_from,
     recipe_json,
-    resample,
     start_pose,
+    training_nearest_distances,
     training_paths,
     trajectories_from_params,
-    travel_direction,
 )
 from pipeline.preview import render_trajectories
 from pipeline.publish import synthetic_table
@@ -37,27 +38,12 @@ from pipeline.synthesis import SynthesisConfig, copied_frames, synthesize
 from pipeline.training import load_checkpoint
 from stages.annotate import config as annotate_config
 from stages.common import REPO, SKELETON, load_params
-from stages.evaluate import placement_config
 
 IN_GAITS = REPO / "data" / "split" / "gaits.parquet"
 IN_MODEL = REPO / "data" / "models" / "full.pt"
 OUT = REPO / "data" / "synthesized"
 OUT_REPORT = REPO / "reports" / "synthesize.json"
 OUT_PLOT = REPO / "reports" / "synthesize.png"
-
-
-def novelty_reference(paths: list, min_compared_m: float) -> list[float]:
-    """How far each training clip's path (from its first window) lies from the nearest other clip's paths."""
-    first: dict[str, np.ndarray] = {}
-    for cid, path in paths:
-        if cid not in first or len(path) > len(first[cid]):
-            first[cid] = path
-    out = []
-    for cid, path in first.items():
-        nearest = nearest_training_path(local_frame(path, path[0], travel_direction(path)), [(c, p) for c, p in paths if c != cid], min_compared_m)
-        if nearest["clip_id"] is not None:
-            out.append(nearest["distance_m"])
-    return out
 
 
 def main(params_path: Path | None = None, in_gaits: Path = IN_GAITS, in_model: Path = IN_MODEL, out: Path = OUT,
@@ -71,8 +57,7 @@ def main(params_path: Path | None = None, in_gaits: Path = IN_GAITS, in_model: P
     content = np.array(table.column("content").to_pylist())
     gait_ids = table.column("gait_id").to_pylist()
     clip_ids = table.column("clip_id").to_pylist()
-    fps, window, stride = (float(params["ingest"]["target_fps"]), int(params["ingest"]["window"]),
-                           int(params["ingest"]["stride"]))
+    fps, window = float(params["ingest"]["target_fps"]), int(params["ingest"]["window"])
     train = np.flatnonzero(split == "train")
     novelty = p["novelty"]
 
@@ -81,15 +66,15 @@ def main(params_path: Path | None = None, in_gaits: Path = IN_GAITS, in_model: P
     labels = labels[~np.isnan(labels).any(-1)].astype(np.float64)
     emotions = novel_emotions(int(p["emotions"]), labels, float(p["min_l1_to_training"]),
                               np.random.default_rng([int(p["seed"]), 0]))
-    label_set = np.unique(np.round(labels, 6), axis=0)
-    emotion_l1 = np.abs(emotions[:, None] - label_set[None]).sum(-1).min(-1)
+    emotion_l1 = l1_to_labels(emotions, labels)
 
     # trajectories: novel w.r.t. the training clips' root paths
     trajectories = trajectories_from_params(p["trajectories"], float(p["start_span_m"]))
     starts = np.round(table.column("t_start").to_numpy()[train] * fps).astype(int)
-    paths = training_paths(arrays["root_path"][train], [clip_ids[i] for i in train], starts, window, stride)
-    reference = novelty_reference(paths, float(novelty["min_compared_m"]))
-    shapes = {t.id: nearest_training_path(t.points, paths, float(novelty["min_compared_m"])) for t in trajectories}
+    paths = training_paths(arrays["root_path"][train], [clip_ids[i] for i in train], starts, window)
+    min_compared = float(novelty["min_compared_m"])
+    reference = training_nearest_distances(paths, min_compared)
+    shapes = {t.id: nearest_training_path(t.points, paths, min_compared) for t in trajectories}
 
     seed_pool = [gait_ids[i] for i in np.flatnonzero((split == "test") & (content == p["seed_content"]))]
     plan = build_plan(trajectories, emotions, seed_pool, int(p["transition_rounds"]), int(p["seed"]))
@@ -97,23 +82,19 @@ def main(params_path: Path | None = None, in_gaits: Path = IN_GAITS, in_model: P
     cfg = SynthesisConfig(prefix=int(params["train"]["prefix"]), frames=window,
                           path_ahead_m=float(p["path_ahead_m"]), batch=int(p["batch"]))
     started = time.perf_counter()
+    placement = PlacementConfig.from_params(params.get("generate") or {}, fps)
     synthetic = synthesize(model, arrays, {g: i for i, g in enumerate(gait_ids)}, plan, emotions,
-                           {t.id: t for t in trajectories}, skeleton, placement_config(params),
-                           annotate_config(params), cfg,
+                           {t.id: t for t in trajectories}, skeleton, placement, annotate_config(params), cfg,
                            progress=lambda done, total: print(f"synthesize: {done}/{total} gaits", flush=True))
     seconds = time.perf_counter() - started
     phase_from_condition = [r["gait_id"] for r, f in zip(plan, synthetic.pop("phase_from_condition")) if f]
 
-    # the pieces the gaits walk vs the training windows' paths (reported, not a test)
-    spacing = 0.1
-    piece_len = float(np.percentile(np.linalg.norm(np.diff(synthetic["root_path"], axis=1), axis=-1).sum(1), 50))
-    windows = np.stack([resample(path[:window] - path[0], spacing, piece_len) for _, path in paths
-                        if np.linalg.norm(np.diff(path[:window], axis=0), axis=-1).sum() >= piece_len])
-    windows = np.stack([local_frame(w, w[0], travel_direction(w, 5)) for w in windows])
-    sample = plan[:: max(1, len(plan) // 500)]
-    pieces = np.stack([resample(piece_from(next(t.points for t in trajectories if t.id == r["trajectory_id"]),
-                                           r["start_m"], piece_len), spacing, piece_len) for r in sample])
-    closeness = piece_closeness(pieces, windows)
+    # the pieces single gaits walk vs the training paths over the same length (reported, not a test)
+    by_id = {t.id: t for t in trajectories}
+    piece_m = float(np.median(np.linalg.norm(np.diff(synthetic["root_path"], axis=1), axis=-1).sum(1)))
+    closeness = np.array([nearest_training_path(piece_from(by_id[r["trajectory_id"]].points, r["start_m"], piece_m),
+                                                paths, piece_m)["distance_m"]
+                          for r in plan[:: max(1, len(plan) // 500)]])
 
     recipes = [recipe_json(r["recipe"], emotions) for r in plan]
     synthetic_rows = synthetic_table(plan, recipes, synthetic, checkpoint_sha, table)
@@ -141,19 +122,21 @@ def main(params_path: Path | None = None, in_gaits: Path = IN_GAITS, in_model: P
         "checkpoint_sha256": checkpoint_sha,
         "emotion_rows_max_abs_sum_error": float(max(np.abs(sums - 1).max(), np.abs(frame_sums - 1).max())),
         "emotion_novelty": {"test": f"L1 distance to every distinct training label > {p['min_l1_to_training']}",
-                            "training_labels": label_set.round(6).tolist(), "min_l1": round(float(emotion_l1.min()), 4),
+                            "training_labels": distinct_labels(labels).tolist(),
+                            "min_l1": round(float(emotion_l1.min()), 4),
                             "passed": bool((emotion_l1 > float(p["min_l1_to_training"])).all())},
         "trajectory_novelty": {
             "test": (f"mean distance at equal arc length to every training clip root path (aligned at each window "
                      f"start, compared where they share >= {novelty['min_compared_m']} m) > {min_distance} m"),
-            "reference_training_nn_distance_m_p50_p90": [round(float(np.percentile(reference, q)), 4) for q in (50, 90)],
-            "compared_training_paths": len(paths),
+            "reference_training_nn_distance_m_p50_p90": [round(float(np.percentile(reference, q)), 4)
+                                                         for q in (50, 90)],
+            "compared_training_paths": len(paths.clip_ids),
             "per_trajectory": {k: {"nearest_m": round(v["distance_m"], 4), "nearest_clip": v["clip_id"],
                                    "compared_m": v["compared_m"], "novel": v["distance_m"] > min_distance}
                                for k, v in shapes.items()},
             "passed": all(v["distance_m"] > min_distance for v in shapes.values()),
-            "gait_pieces": {"length_m": round(piece_len, 3), "sampled": len(sample),
-                            f"within_{novelty['piece_close_m']}_m_of_a_training_window": round(float(
+            "gait_pieces": {"length_m": round(piece_m, 3), "sampled": len(closeness),
+                            f"within_{novelty['piece_close_m']}_m_of_a_training_path": round(float(
                                 (closeness <= float(novelty["piece_close_m"])).mean()), 4),
                             "nearest_m_p50": round(float(np.median(closeness)), 4)}},
         "phase_from_condition": {"gaits": phase_from_condition, "why": "too few foot strikes in prefix + generated "
@@ -164,13 +147,14 @@ def main(params_path: Path | None = None, in_gaits: Path = IN_GAITS, in_model: P
         "agent_frames_per_second": round(len(plan) * window / seconds, 1),
     }
     write_json_atomic(report, out_report)
-    points = {t.id: t.points for t in trajectories}
-    placements = []
-    for r in plan:
-        i, direction = start_pose(points[r["trajectory_id"]], r["start_m"])
-        placements.append((r["trajectory_id"], points[r["trajectory_id"]][i], direction))
-    render_trajectories(list(points.items()), synthetic["root_path"], placements, out_plot)
-    print(f"synthesize: {report['gaits']} gaits in {seconds:.1f} s; emotions novel {report['emotion_novelty']['passed']}, "
+    placed: dict[str, list[np.ndarray]] = {t.id: [] for t in trajectories}
+    for r, root_path in zip(plan, synthetic["root_path"]):
+        points = by_id[r["trajectory_id"]].points
+        i, direction = start_pose(points, r["start_m"])
+        placed[r["trajectory_id"]].append(onto(root_path, points[i], direction))
+    render_trajectories([(t.id, t.points, placed[t.id]) for t in trajectories], out_plot)
+    print(f"synthesize: {report['gaits']} gaits in {seconds:.1f} s; "
+          f"emotions novel {report['emotion_novelty']['passed']}, "
           f"trajectories novel {report['trajectory_novelty']['passed']}, copied frames {report['copied_real_frames']}")
     return report
 

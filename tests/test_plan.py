@@ -3,16 +3,17 @@ published table's lineage, on the real training data."""
 
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
 import pytest
 
+from pipeline.annotate import rebuild_clips
 from pipeline.plan import (
     arc_lengths,
     build_plan,
     frame_emotions,
+    local_frame,
     nearest_training_path,
     novel_emotions,
     piece_from,
@@ -20,6 +21,7 @@ from pipeline.plan import (
     trajectories_from_params,
     trajectory_points,
     transition_rounds,
+    travel_direction,
 )
 from pipeline.synthesis import copied_frames
 from stages.common import load_params
@@ -80,20 +82,19 @@ def test_trajectory_novelty_rejects_a_training_path_and_accepts_the_planned_shap
     table, arrays = annotated
     clip_ids = table.column("clip_id").to_pylist()
     starts = np.round(table.column("t_start").to_numpy() * 30).astype(int)
-    paths = training_paths(arrays["root_path"], clip_ids, starts, 60, 30)
+    paths = training_paths(arrays["root_path"], clip_ids, starts, 60)
     novelty = PARAMS["novelty"]
-    # a training clip's own path (in its start frame) is found at distance ~0: the test can fail
-    cid, path = next((c, p) for c, p in paths if arc_lengths(p)[-1] > 5)
-    d = path[30] - path[0]
-    angle = math.atan2(d[0], d[1])
-    c, s = math.cos(angle), math.sin(angle)
-    local = np.stack([c * (path[:, 0] - path[0, 0]) - s * (path[:, 1] - path[0, 1]),
-                      s * (path[:, 0] - path[0, 0]) + c * (path[:, 1] - path[0, 1])], -1)
-    assert nearest_training_path(local, paths, novelty["min_compared_m"])["distance_m"] < 1e-6
-    straight = nearest_training_path(trajectory_points([[12, 0, 0]]), paths, novelty["min_compared_m"])
-    assert straight["distance_m"] < novelty["min_mean_distance_m"]  # walking straight ahead is not new
-    for t in trajectories_from_params(PARAMS["trajectories"], PARAMS["start_span_m"])[:4]:
-        assert nearest_training_path(t.points, paths, novelty["min_compared_m"])["distance_m"] > novelty["min_mean_distance_m"]
+    least, threshold = novelty["min_compared_m"], novelty["min_mean_distance_m"]
+    # a training clip's own path, in its start frame, is found at distance ~0: the test can fail
+    cid, (clip, _) = next((c, v) for c, v in rebuild_clips(clip_ids, starts, arrays["root_path"], 60).items()
+                          if arc_lengths(v[0])[-1] > 5)
+    own = local_frame(clip, clip[0], travel_direction(clip))
+    assert nearest_training_path(own, paths, least)["distance_m"] < 1e-6
+    assert nearest_training_path(own, paths, least, exclude_clip=cid)["clip_id"] != cid
+    straight = nearest_training_path(trajectory_points([[12, 0, 0]]), paths, least)
+    assert straight["distance_m"] < threshold  # walking straight ahead is not new
+    for t in trajectories_from_params(PARAMS["trajectories"], PARAMS["start_span_m"]):
+        assert nearest_training_path(t.points, paths, least)["distance_m"] > threshold, t.id
 
 
 def test_copied_frames_finds_a_copied_pose_even_turned(annotated):

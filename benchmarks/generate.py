@@ -3,8 +3,10 @@
 For each batch size N in ``--agents``: N seed gaits (test-split windows of data/split/gaits.parquet, cycled when
 there are fewer), a sharp-turn path each, a per-frame emotion, ``--steps`` generated frames in ONE call. Timed
 after one warm-up call; the median of ``--repeats`` is reported as agent-frames per second (N × steps / seconds),
-with the torch thread count. The model is data/models/full.pt when it exists (the sizes in params.yaml otherwise:
-speed does not depend on the weights). Printed as JSON and written to benchmarks/out/generate.json.
+with the torch thread count. Then the synthesize stage's work on the whole 5,000-gait plan (generation and
+annotation, in the stage's batches), timed ``--synthesis-repeats`` times (median). The model is
+data/models/full.pt when it exists (the sizes in params.yaml otherwise: speed does not depend on the weights).
+Printed as JSON and written to benchmarks/out/generate.json.
 
 Run from the repository root:  ``make bench``  or  ``python benchmarks/generate.py [--agents 1 16 64 256]``.
 """
@@ -31,10 +33,26 @@ from pipeline.generator import EmotiveGaitNet, GeneratorConfig  # noqa: E402
 from pipeline.skeleton import load_skeleton  # noqa: E402
 from pipeline.training import load_checkpoint  # noqa: E402
 from stages.common import SKELETON, load_params  # noqa: E402
+from stages.synthesize import Synthesis  # noqa: E402
 
 OUT = REPO / "benchmarks" / "out" / "generate.json"
 GAITS = REPO / "data" / "split" / "gaits.parquet"
 MODEL = REPO / "data" / "models" / "full.pt"
+
+
+def synthesis_figures(model: EmotiveGaitNet, params: dict, repeats: int) -> dict:
+    """The synthesize stage's work on the whole plan (generation + annotation, no file writes), timed."""
+    work = Synthesis.prepare(params, GAITS)
+    frames = int(params["ingest"]["window"])
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        work.run(model)
+        times.append(time.perf_counter() - start)
+    seconds = statistics.median(times)
+    return {"gaits": len(work.plan), "frames_per_gait": frames, "seconds": round(seconds, 2),
+            "seconds_all": [round(t, 2) for t in times], "target_seconds": 60,
+            "agent_frames_per_s": round(len(work.plan) * frames / seconds, 1)}
 
 
 def main() -> dict:
@@ -43,6 +61,8 @@ def main() -> dict:
     parser.add_argument("--steps", type=int, default=60)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--synthesis-repeats", type=int, default=1,
+                        help="times to synthesize the whole default plan (5,000 gaits; 0 skips it)")
     args = parser.parse_args()
     if not GAITS.exists():
         sys.exit(f"{GAITS} is missing: run `make repro` (or `dvc repro split`) first")
@@ -78,6 +98,8 @@ def main() -> dict:
         results.append({"agents": n, "steps": args.steps, "seconds": round(seconds, 4),
                         "agent_frames_per_s": round(n * args.steps / seconds, 1)})
     out = {"model": source, "threads": args.threads, "torch": torch.__version__, "results": results}
+    if args.synthesis_repeats:
+        out["synthesis"] = synthesis_figures(model, params, args.synthesis_repeats)
     OUT.parent.mkdir(parents=True, exist_ok=True)
     text = json.dumps(out, indent=2)
     OUT.write_text(text + "\n")

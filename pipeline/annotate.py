@@ -57,6 +57,13 @@ def annotate_clip(positions: torch.Tensor, skeleton: Skeleton, cfg: AnnotateConf
     return {"contacts": contacts, "events": events, "phase": theta, "phase_rate": phase_rate(theta)}
 
 
+def stored_phase(phase: np.ndarray) -> np.ndarray:
+    """The stepping phase as stored (float32): float32 rounds phases just below 2π up to 2π; keep [0, 2π)."""
+    out = np.asarray(phase, dtype=np.float32).copy()
+    out[out >= np.float32(2 * np.pi)] = 0.0
+    return out
+
+
 def annotate_windows(clip_ids: Sequence[str], t_start: np.ndarray, positions: np.ndarray, rotations: np.ndarray,
                      skeleton: Skeleton, cfg: AnnotateConfig) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     """Annotations for every window: arrays (rows, ...) and a summary per clip.
@@ -85,8 +92,7 @@ def annotate_windows(clip_ids: Sequence[str], t_start: np.ndarray, positions: np
             "stance_fraction": float(((down[:, 0] + down[:, 1] > 0).mean() + (down[:, 2] + down[:, 3] > 0).mean()) / 2),
             "phase_defined": bool(torch.isfinite(ann["phase"]).all()),
         }
-    # float32 rounds phases just below 2π up to 2π: keep the stored phase in [0, 2π)
-    out["phase"][out["phase"] >= np.float32(2 * np.pi)] = 0.0
+    out["phase"] = stored_phase(out["phase"])
     pos = torch.from_numpy(positions).double()
     offsets = torch.from_numpy(skeleton.offsets)
     out["affective"] = pose_affective_features(pos[..., 0, :], torch.from_numpy(rotations).double(), offsets,

@@ -152,6 +152,11 @@ def bvh_text(rotations: torch.Tensor | np.ndarray, root_positions: torch.Tensor 
     return "\n".join(lines) + "\n"
 
 
+def bvh_file_name(gait_id: str) -> str:
+    """A file name for a gait's BVH: its id with path and fragment separators made plain."""
+    return gait_id.replace("/", "_").replace("#", "_") + ".bvh"
+
+
 def write_bvh(path: str | Path, rotations: torch.Tensor | np.ndarray, root_positions: torch.Tensor | np.ndarray,
               skeleton: Skeleton, fps: float) -> None:
     """Write ``bvh_text`` atomically (temporary file + rename), so a reader never sees half a file."""

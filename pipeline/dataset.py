@@ -66,10 +66,15 @@ def parquet_files(directory: str | Path) -> list[Path]:
     return [single] if single.is_file() else shards
 
 
+def directory_metadata(directory: str | Path) -> dict[str, Any]:
+    """The ``emogait`` schema metadata of a published directory (its first Parquet file's)."""
+    return json.loads(pq.read_schema(parquet_files(directory)[0]).metadata[b"emogait"])
+
+
 def read_table(directory: str | Path, columns: Sequence[str] | None = None) -> tuple[pa.Table, dict[str, Any]]:
     """All gaits as one table (shards concatenated in order) and the ``emogait`` metadata of the first file."""
     files = parquet_files(directory)
-    meta = json.loads(pq.read_schema(files[0]).metadata[b"emogait"])
+    meta = directory_metadata(directory)
     tables = [pq.read_table(f, columns=list(columns) if columns else None) for f in files]
     return pa.concat_tables(tables).combine_chunks(), meta
 
@@ -104,6 +109,24 @@ def load_dataframe(directory: str | Path, columns: Sequence[str] | None = None) 
     frame = pd.DataFrame(data)
     frame.attrs["emogait"] = meta
     return frame
+
+
+def gaits_by_id(directory: str | Path, ids: Sequence[str], columns: Sequence[str]) -> dict[str, dict[str, Any]]:
+    """Selected gaits, read without loading the rest: {gait id: {column: value, arrays shaped}}; an unknown id
+    raises KeyError naming it."""
+    files = parquet_files(directory)
+    meta = directory_metadata(directory)
+    wanted = list(dict.fromkeys([ID_COLUMN, *columns]))
+    table = pa.concat_tables([pq.read_table(f, columns=wanted, filters=[(ID_COLUMN, "in", list(ids))]) for f in files])
+    found = {}
+    for name in wanted:
+        values = (column_array(table, name, meta["shapes"][name]) if name in meta["shapes"]
+                  else table.column(name).to_pylist())
+        for row, gait_id in enumerate(table.column(ID_COLUMN).to_pylist()):
+            found.setdefault(gait_id, {})[name] = values[row]
+    if missing := [i for i in ids if i not in found]:
+        raise KeyError(f"{directory}: no gait with id {', '.join(missing)}")
+    return found
 
 
 class GaitDataset(Dataset):

@@ -9,7 +9,6 @@ real windows (pipeline.annotate).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -17,7 +16,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from pipeline.annotate import AnnotateConfig, annotate_clip
+from pipeline.annotate import AnnotateConfig, annotate_clip, stored_phase
 from pipeline.contacts import phase_rate
 from pipeline.features import movement_features, pose_affective_features
 from pipeline.generation import PlacementConfig, Seeds, generate, place_paths
@@ -43,12 +42,11 @@ def synthesize(model: EmotiveGaitNet, arrays: dict[str, np.ndarray], row_of: dic
     phase_from_condition (bool per gait)."""
     offsets = torch.from_numpy(skeleton.offsets).to(torch.float32)
     parts: dict[str, list[np.ndarray]] = {}
-    points = {tid: t.points for tid, t in trajectories.items()}
     for first in range(0, len(plan), cfg.batch):
         rows = plan[first:first + cfg.batch]
         seed_rows = np.array([row_of[r["seed_gait_id"]] for r in rows])
         seeds = Seeds.from_arrays(arrays, seed_rows, cfg.prefix)
-        shapes = torch.from_numpy(np.stack([piece_from(points[r["trajectory_id"]], r["start_m"], cfg.path_ahead_m)
+        shapes = torch.from_numpy(np.stack([piece_from(trajectories[r["trajectory_id"]].points, r["start_m"], cfg.path_ahead_m)
                                             for r in rows]).astype(np.float32))
         per_frame = np.stack([frame_emotions(r["recipe"], emotions, cfg.frames) for r in rows])
         g = generate(model, seeds, place_paths(shapes, seeds), torch.from_numpy(per_frame.astype(np.float32)),
@@ -80,10 +78,8 @@ def _annotate(positions: torch.Tensor, rotations: torch.Tensor, prefix_positions
         contacts.append(ann["contacts"][prefix:].numpy())
         phase.append(theta.numpy())
         rate.append(phase_rate(theta).numpy())
-    phase_arr = np.stack(phase).astype(np.float32)
-    phase_arr[phase_arr >= np.float32(2 * math.pi)] = 0.0  # as pipeline.annotate: float32 keeps [0, 2π)
     offsets = torch.from_numpy(skeleton.offsets)
-    return {"contacts": np.stack(contacts), "phase": phase_arr, "phase_rate": np.stack(rate),
+    return {"contacts": np.stack(contacts), "phase": stored_phase(np.stack(phase)), "phase_rate": np.stack(rate),
             "phase_from_condition": np.array(fallback),
             "affective": pose_affective_features(positions[..., 0, :], rotations, offsets, skeleton.parents).numpy(),
             "movement": movement_features(positions, cfg.lowpass_frames).numpy()}

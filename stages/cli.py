@@ -7,6 +7,7 @@ import hashlib
 import sys
 from pathlib import Path
 
+import numpy as np
 import yaml
 
 from stages.common import REPO, SOURCES, load_params, mocap_root
@@ -19,6 +20,8 @@ STAGES = {  # subcommand -> (module under stages/, help)
     "split": ("split", "train/val/test by clip"),
     "train": ("train", "the generator and its ablations"),
     "evaluate": ("evaluate", "the generator on the test split"),
+    "synthesize": ("synthesize", "the 5,000-gait plan and its synthetic gaits"),
+    "publish": ("publish", "the published dataset directory"),
 }
 
 
@@ -65,6 +68,34 @@ def _cmd_pin(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_export_bvh(args: argparse.Namespace) -> int:
+    """Write gaits of a published directory as BVH files on the canonical skeleton."""
+    from pipeline.bvh_export import bvh_file_name, write_bvh
+    from pipeline.dataset import directory_metadata, gaits_by_id
+    from pipeline.skeleton import load_skeleton
+    from stages.common import SKELETON
+
+    skeleton = load_skeleton(SKELETON)
+    meta = directory_metadata(args.dataset)
+    if list(meta["joint_names"]) != list(skeleton.names):
+        print(f"{args.dataset}: expected the canonical joints {list(skeleton.names)}, found {meta['joint_names']}",
+              file=sys.stderr)
+        return 2
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        gaits = gaits_by_id(args.dataset, args.gait_ids, ["rotations", "positions"])
+    except KeyError as err:
+        print(err.args[0], file=sys.stderr)
+        return 2
+    for gait_id, gait in gaits.items():
+        path = out / bvh_file_name(gait_id)
+        write_bvh(path, gait["rotations"].astype(np.float64), gait["positions"][:, 0].astype(np.float64), skeleton,
+                  float(meta["fps"]))
+        print(f"wrote {path}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="emogait", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -82,6 +113,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--frames", type=int, default=8, help="frames per strip")
     p.add_argument("--out", required=True, help="output .png (filmstrip) or .gif (animation of the first motion)")
     p.set_defaults(func=_cmd_preview)
+    p = sub.add_parser("export-bvh", help="write gaits of a published dataset as BVH (canonical skeleton)")
+    p.add_argument("gait_ids", nargs="+", help="gait ids (the gait_id column)")
+    p.add_argument("--dataset", default=str(REPO / "data/published/synthesized_emotive_gaits"),
+                   help="published directory")
+    p.add_argument("--out", default=".", help="output folder (one <gait id>.bvh per gait)")
+    p.set_defaults(func=_cmd_export_bvh)
     p = sub.add_parser("pin", help="pin every file a source manifest's globs find (sha256) into the manifest")
     p.add_argument("manifest", help=f"e.g. {SOURCES.relative_to(REPO)}/NAME.yaml")
     p.add_argument("--mocap-root", help="default: params.yaml data.mocap_root")

@@ -9,15 +9,19 @@ from __future__ import annotations
 import csv
 import io
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pyarrow as pa
 import torch
 
 from pipeline.gait_table import atomic_path, read_gaits, write_json_atomic, write_parquet_atomic
 from pipeline.generation import PlacementConfig
+from pipeline.generator import EmotiveGaitNet
 from pipeline.plan import (
+    Trajectory,
     build_plan,
     distinct_labels,
     l1_to_labels,
@@ -46,46 +50,71 @@ OUT_REPORT = REPO / "reports" / "synthesize.json"
 OUT_PLOT = REPO / "reports" / "synthesize.png"
 
 
+@dataclass
+class Synthesis:
+    """Everything the plan needs, from params and the split gaits (shared with benchmarks/generate.py)."""
+
+    params: dict[str, Any]
+    table: pa.Table
+    arrays: dict[str, np.ndarray]
+    labels: np.ndarray  # the train split's emotion labels
+    emotions: np.ndarray
+    trajectories: list[Trajectory]
+    seed_pool: list[str]  # test-split gaits whose prefixes seed the synthetic gaits
+    plan: list[dict[str, Any]]
+
+    @classmethod
+    def prepare(cls, params: dict[str, Any], in_gaits: Path = IN_GAITS) -> Synthesis:
+        p = params["synthesize"]
+        table, arrays = read_gaits(in_gaits)
+        split = np.array(table.column("split").to_pylist())
+        content = np.array(table.column("content").to_pylist())
+        labels = arrays["emotion"][split == "train"]
+        labels = labels[~np.isnan(labels).any(-1)].astype(np.float64)
+        emotions = novel_emotions(int(p["emotions"]), labels, float(p["min_l1_to_training"]),
+                                  np.random.default_rng([int(p["seed"]), 0]))
+        trajectories = trajectories_from_params(p["trajectories"], float(p["start_span_m"]))
+        gait_ids = table.column("gait_id").to_pylist()
+        seed_pool = [gait_ids[i] for i in np.flatnonzero((split == "test") & (content == p["seed_content"]))]
+        plan = build_plan(trajectories, emotions, seed_pool, int(p["transition_rounds"]), int(p["seed"]))
+        return cls(params, table, arrays, labels, emotions, trajectories, seed_pool, plan)
+
+    def run(self, model: EmotiveGaitNet, progress: bool = False) -> dict[str, np.ndarray]:
+        params, p = self.params, self.params["synthesize"]
+        cfg = SynthesisConfig(prefix=int(params["train"]["prefix"]), frames=int(params["ingest"]["window"]),
+                              path_ahead_m=float(p["path_ahead_m"]), batch=int(p["batch"]))
+        placement = PlacementConfig.from_params(params.get("generate") or {}, params["ingest"]["target_fps"])
+        row_of = {g: i for i, g in enumerate(self.table.column("gait_id").to_pylist())}
+        return synthesize(model, self.arrays, row_of, self.plan, self.emotions, {t.id: t for t in self.trajectories},
+                          load_skeleton(SKELETON), placement, annotate_config(params), cfg,
+                          progress=(lambda done, total: print(f"synthesize: {done}/{total} gaits", flush=True))
+                          if progress else None)
+
+
 def main(params_path: Path | None = None, in_gaits: Path = IN_GAITS, in_model: Path = IN_MODEL, out: Path = OUT,
          out_report: Path = OUT_REPORT, out_plot: Path = OUT_PLOT) -> dict[str, Any]:
     params = load_params(params_path) if params_path else load_params()
     p = params["synthesize"]
     torch.set_num_threads(2)
-    skeleton = load_skeleton(SKELETON)
-    table, arrays = read_gaits(in_gaits)
+    work = Synthesis.prepare(params, in_gaits)
+    table, arrays, plan, emotions, trajectories = work.table, work.arrays, work.plan, work.emotions, work.trajectories
     split = np.array(table.column("split").to_pylist())
-    content = np.array(table.column("content").to_pylist())
-    gait_ids = table.column("gait_id").to_pylist()
     clip_ids = table.column("clip_id").to_pylist()
     fps, window = float(params["ingest"]["target_fps"]), int(params["ingest"]["window"])
     train = np.flatnonzero(split == "train")
     novelty = p["novelty"]
-
-    # emotions: novel w.r.t. the distinct training labels
-    labels = arrays["emotion"][train]
-    labels = labels[~np.isnan(labels).any(-1)].astype(np.float64)
-    emotions = novel_emotions(int(p["emotions"]), labels, float(p["min_l1_to_training"]),
-                              np.random.default_rng([int(p["seed"]), 0]))
-    emotion_l1 = l1_to_labels(emotions, labels)
+    emotion_l1 = l1_to_labels(emotions, work.labels)
 
     # trajectories: novel w.r.t. the training clips' root paths
-    trajectories = trajectories_from_params(p["trajectories"], float(p["start_span_m"]))
     starts = np.round(table.column("t_start").to_numpy()[train] * fps).astype(int)
     paths = training_paths(arrays["root_path"][train], [clip_ids[i] for i in train], starts, window)
     min_compared = float(novelty["min_compared_m"])
     reference = training_nearest_distances(paths, min_compared)
     shapes = {t.id: nearest_training_path(t.points, paths, min_compared) for t in trajectories}
 
-    seed_pool = [gait_ids[i] for i in np.flatnonzero((split == "test") & (content == p["seed_content"]))]
-    plan = build_plan(trajectories, emotions, seed_pool, int(p["transition_rounds"]), int(p["seed"]))
     model, _, checkpoint_sha = load_checkpoint(in_model)
-    cfg = SynthesisConfig(prefix=int(params["train"]["prefix"]), frames=window,
-                          path_ahead_m=float(p["path_ahead_m"]), batch=int(p["batch"]))
     started = time.perf_counter()
-    placement = PlacementConfig.from_params(params.get("generate") or {}, fps)
-    synthetic = synthesize(model, arrays, {g: i for i, g in enumerate(gait_ids)}, plan, emotions,
-                           {t.id: t for t in trajectories}, skeleton, placement, annotate_config(params), cfg,
-                           progress=lambda done, total: print(f"synthesize: {done}/{total} gaits", flush=True))
+    synthetic = work.run(model, progress=True)
     seconds = time.perf_counter() - started
     phase_from_condition = [r["gait_id"] for r, f in zip(plan, synthetic.pop("phase_from_condition")) if f]
 
@@ -117,12 +146,12 @@ def main(params_path: Path | None = None, in_gaits: Path = IN_GAITS, in_model: P
         "per_trajectory": {t.id: sum(r["trajectory_id"] == t.id for r in plan) for t in trajectories},
         "single_emotion_gaits": sum(r["recipe"]["kind"] == "single" for r in plan),
         "transition_gaits": sum(r["recipe"]["kind"] == "transition" for r in plan),
-        "seed_pool": {"split": "test", "content": p["seed_content"], "gaits": len(seed_pool),
+        "seed_pool": {"split": "test", "content": p["seed_content"], "gaits": len(work.seed_pool),
                       "used": len({r["seed_gait_id"] for r in plan})},
         "checkpoint_sha256": checkpoint_sha,
         "emotion_rows_max_abs_sum_error": float(max(np.abs(sums - 1).max(), np.abs(frame_sums - 1).max())),
         "emotion_novelty": {"test": f"L1 distance to every distinct training label > {p['min_l1_to_training']}",
-                            "training_labels": distinct_labels(labels).tolist(),
+                            "training_labels": distinct_labels(work.labels).tolist(),
                             "min_l1": round(float(emotion_l1.min()), 4),
                             "passed": bool((emotion_l1 > float(p["min_l1_to_training"])).all())},
         "trajectory_novelty": {

@@ -106,6 +106,19 @@ def check_published(published: Path, work: Path) -> None:
         assert list(h5.attrs["emotion_order"]) == ["happy", "sad", "angry", "neutral"]
     item = GaitDataset(published)[len(frame) - 1]
     assert tuple(item["positions"].shape) == (60, 21, 3)
+    # BVH export of a real and a synthetic gait, read back by our own reader: the same positions (< 1 mm)
+    from pipeline.bvh_export import bvh_file_name
+    from pipeline.skeleton import load_skeleton
+    from stages.cli import main as emogait
+    from stages.common import SKELETON
+    from tests.test_bvh_export import TOLERANCE_M, _bvh_positions
+
+    chosen = [real["gait_id"].iloc[0], synthetic["gait_id"].iloc[-1]]
+    assert emogait(["export-bvh", *chosen, "--dataset", str(published), "--out", str(work / "bvh")]) == 0
+    for gait_id in chosen:
+        read_back = _bvh_positions(work / "bvh" / bvh_file_name(gait_id), load_skeleton(SKELETON)).numpy()
+        stored = frame.loc[frame["gait_id"] == gait_id, "positions"].iloc[0]
+        assert np.linalg.norm(read_back - stored, axis=-1).max() < TOLERANCE_M, gait_id
     report = json.loads((work / "reports/synthesize.json").read_text())
     assert report["gaits"] == 5000 and report["copied_real_frames"] == 0 and report["finite"]
     assert report["emotion_novelty"]["passed"] and report["trajectory_novelty"]["passed"]

@@ -25,7 +25,7 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from pipeline.dataset import HDF5_NAME, ID_COLUMN, SHARD_GLOB, _sha256, parquet_files
+from pipeline.dataset import HDF5_NAME, ID_COLUMN, SHARD_GLOB, file_sha256, parquet_files
 from pipeline.gait_table import atomic_path
 
 CROISSANT_NAME = "croissant.json"
@@ -151,7 +151,7 @@ def _distribution(directory: Path, files: list[Path]) -> tuple[list[dict[str, An
     def file_object(path: Path, encoding: str) -> dict[str, Any]:
         rel = path.relative_to(directory).as_posix()
         return {"@type": "cr:FileObject", "@id": rel, "name": rel, "contentUrl": rel,
-                "contentSize": f"{path.stat().st_size} B", "encodingFormat": encoding, "sha256": _sha256(path)}
+                "contentSize": f"{path.stat().st_size} B", "encodingFormat": encoding, "sha256": file_sha256(path)}
 
     objects = [file_object(f, PARQUET_FORMAT) for f in files]
     if len(files) == 1 and not files[0].match(SHARD_GLOB):
@@ -240,7 +240,7 @@ def croissant_problems(directory: Path, doc: Mapping[str, Any]) -> list[str]:
         path = directory / item["contentUrl"]
         if not path.is_file():
             problems.append(f"{CROISSANT_NAME}: FileObject {item['@id']!r}: {item['contentUrl']} is missing")
-        elif (found := _sha256(path)) != item.get("sha256"):
+        elif (found := file_sha256(path)) != item.get("sha256"):
             problems.append(f"{CROISSANT_NAME}: FileObject {item['@id']!r}: sha256 {item.get('sha256')}, "
                             f"the file's is {found}")
     schema = pq.read_schema(files[0])

@@ -66,9 +66,14 @@ def parquet_files(directory: str | Path) -> list[Path]:
     return [single] if single.is_file() else shards
 
 
+def directory_schema(directory: str | Path) -> pa.Schema:
+    """The Parquet schema of a published directory (its first Parquet file's)."""
+    return pq.read_schema(parquet_files(directory)[0])
+
+
 def directory_metadata(directory: str | Path) -> dict[str, Any]:
-    """The ``emogait`` schema metadata of a published directory (its first Parquet file's)."""
-    return json.loads(pq.read_schema(parquet_files(directory)[0]).metadata[b"emogait"])
+    """The ``emogait`` schema metadata of a published directory."""
+    return json.loads(directory_schema(directory).metadata[b"emogait"])
 
 
 def read_table(directory: str | Path, columns: Sequence[str] | None = None) -> tuple[pa.Table, dict[str, Any]]:
@@ -234,12 +239,12 @@ def write_hdf5_atomic(table: pa.Table, arrays: dict[str, np.ndarray], path: str 
         _write_root_attrs(h5, meta)
 
 
-def _sha256(path: Path) -> str:
+def file_sha256(path: Path) -> str:
     with path.open("rb") as fh:
         return hashlib.file_digest(fh, "sha256").hexdigest()
 
 
-def _listed_files(directory: Path) -> list[str]:
+def listed_files(directory: Path) -> list[str]:
     """Relative paths of the files SHA256SUMS covers: every non-hidden file but itself, sorted."""
     rels = (p.relative_to(directory).as_posix() for p in directory.rglob("*") if p.is_file())
     return sorted(r for r in rels if r != SUMS_NAME and not any(part.startswith(".") for part in r.split("/")))
@@ -248,7 +253,7 @@ def _listed_files(directory: Path) -> list[str]:
 def write_sha256sums(directory: str | Path) -> Path:
     """Write SHA256SUMS for the directory's files (run last, after every other file is in place)."""
     directory = Path(directory)
-    lines = [f"{_sha256(directory / rel)}  {rel}\n" for rel in _listed_files(directory)]
+    lines = [f"{file_sha256(directory / rel)}  {rel}\n" for rel in listed_files(directory)]
     path = directory / SUMS_NAME
     with atomic_path(path) as tmp:
         tmp.write_text("".join(lines), encoding="utf-8")
@@ -298,9 +303,9 @@ def _check_sums(directory: Path) -> list[str]:
         file = directory / rel
         if not file.is_file():
             problems.append(f"{rel}: listed in {SUMS_NAME} but missing")
-        elif (found := _sha256(file)) != digest:
+        elif (found := file_sha256(file)) != digest:
             problems.append(f"{rel}: sha256 mismatch: expected {digest} ({SUMS_NAME}), found {found}")
-    unlisted = [rel for rel in _listed_files(directory) if rel not in listed]
+    unlisted = [rel for rel in listed_files(directory) if rel not in listed]
     return problems + [f"{rel}: present but not listed in {SUMS_NAME}" for rel in unlisted]
 
 

@@ -23,7 +23,7 @@ from typing import Any
 
 import yaml
 
-from pipeline.dataset import SUMS_NAME, _listed_files, _sha256
+from pipeline.dataset import SUMS_NAME, file_sha256, listed_files
 from pipeline.gait_table import atomic_path
 
 PROVENANCE_NAME = "provenance.json"
@@ -52,8 +52,21 @@ def _digest(record: Mapping[str, Any]) -> str:
     return str(record.get(record.get("hash", "md5"), ""))
 
 
+def _md5(record: Mapping[str, Any]) -> dict[str, str]:
+    """The ``dvc:md5`` attribute of a record, or none for a record without a digest."""
+    return {"dvc:md5": digest} if (digest := _digest(record)) else {}
+
+
+def _reports(repo_root: Path) -> set[str]:
+    """The metrics and plots dvc.yaml declares: measurements (timings among them) that differ from run to run, so
+    provenance names them without their digests."""
+    spec = yaml.safe_load((Path(repo_root) / "dvc.yaml").read_text(encoding="utf-8"))["stages"]
+    return {next(iter(item)) if isinstance(item, dict) else str(item)
+            for stage in spec.values() for key in ("metrics", "plots") for item in stage.get(key, [])}
+
+
 def _path_entity(record: Mapping[str, Any]) -> dict[str, Any]:
-    entity: dict[str, Any] = {"prov:label": record["path"], "dvc:path": record["path"], "dvc:md5": _digest(record)}
+    entity: dict[str, Any] = {"prov:label": record["path"], "dvc:path": record["path"], **_md5(record)}
     if "size" in record:
         entity["dvc:size"] = record["size"]
     if "nfiles" in record:
@@ -67,25 +80,44 @@ def _holds(out: str, file: str) -> bool:
     return file == out or file.startswith(out.rstrip(os.sep) + os.sep)
 
 
-def _running_stage(repo_root: Path, name: str, stages: Mapping[str, Any]) -> dict[str, Any]:
-    """The record of the stage now running, from dvc.yaml: its lock entry (if any) is its previous run's, whose
-    output digests would make every run's provenance differ from the last. A dep takes the digest another stage
-    recorded for the same path (an upstream output, already locked), a plain file its md5, a directory none."""
+def _running_stage(repo_root: Path, name: str, stages: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The record of the stage now running, from dvc.yaml (its lock entry, if any, is its previous run's), and
+    the locked stages upstream of it. A dep that is a file gets the md5 of what it holds now; a directory the
+    record of the upstream stage that outputs it."""
     spec = yaml.safe_load((Path(repo_root) / "dvc.yaml").read_text(encoding="utf-8"))["stages"][name]
-    known = {r["path"]: r for other, st in stages.items() if other != name
-             for r in [*st.get("deps", []), *st.get("outs", [])]}
-
-    def record(path: str) -> dict[str, Any]:
-        if path in known:
-            return {k: v for k, v in known[path].items() if k in ("path", "md5", "hash", "size", "nfiles")}
-        file = Path(repo_root) / path
-        return {"path": path, "md5": hashlib.md5(file.read_bytes()).hexdigest()} if file.is_file() else {"path": path}
 
     def paths(items: list[Any]) -> list[str]:
         return [next(iter(i)) if isinstance(i, dict) else str(i) for i in items]
 
-    return {"cmd": spec["cmd"], "deps": [record(p) for p in paths(spec.get("deps", []))],
-            "outs": [{"path": p} for p in paths(spec.get("outs", []))]}
+    deps = paths(spec.get("deps", []))
+    upstream = _upstream(stages, deps)
+    outs = {r["path"]: r for st in upstream.values() for r in st.get("outs", [])}
+
+    def record(path: str) -> dict[str, Any]:
+        file = Path(repo_root) / path
+        if file.is_file():
+            return {"path": path, "md5": hashlib.md5(file.read_bytes()).hexdigest()}
+        return {k: v for k, v in outs.get(path, {"path": path}).items() if k in ("path", "md5", "hash", "size", "nfiles")}
+
+    return ({"cmd": spec["cmd"], "deps": [record(p) for p in deps],
+             "outs": [{"path": p} for p in paths(spec.get("outs", []))]}, upstream)
+
+
+def _upstream(stages: Mapping[str, Any], deps: list[str]) -> dict[str, Any]:
+    """The stages whose outputs the given deps are, directly or through others, in lock order: the lineage of
+    a running stage, without the stages after it (whose lock entries depend on when it ran)."""
+    wanted = set(deps)
+    kept: set[str] = set()
+    changed = True
+    while changed:
+        changed = False
+        for name, stage in stages.items():
+            outs = {o["path"] for o in stage.get("outs", [])}
+            if name not in kept and any(_holds(o, w) or _holds(w, o) for o in outs for w in wanted):
+                kept.add(name)
+                wanted |= {d["path"] for d in stage.get("deps", [])}
+                changed = True
+    return {name: stage for name, stage in stages.items() if name in kept}
 
 
 def prov_document(lock_path: Path, repo_root: Path, published: Path, running: str | None = None) -> dict[str, Any]:
@@ -96,7 +128,7 @@ def prov_document(lock_path: Path, repo_root: Path, published: Path, running: st
     the last stage, in lock order, with an output that is the file or a directory above it; a file no stage
     outputs (e.g. while the publish stage runs for the first time, before DVC has locked it) is an entity
     without relations. running: the stage calling this (e.g. ``publish``), described from dvc.yaml (see
-    ``_running_stage``) and placed last.
+    ``_running_stage``) after the stages it depends on (``_upstream``); the others are left out.
     """
     lock = yaml.safe_load(Path(lock_path).read_text(encoding="utf-8"))
     root = os.path.abspath(repo_root)
@@ -104,7 +136,12 @@ def prov_document(lock_path: Path, repo_root: Path, published: Path, running: st
         raise ValueError(f"{lock_path}: expected a dvc.lock mapping with 'stages', found {type(lock).__name__}")
     if running:
         stages = {k: v for k, v in lock["stages"].items() if k != running}
-        lock["stages"] = {**stages, running: _running_stage(Path(repo_root), running, stages)}
+        record, upstream = _running_stage(Path(repo_root), running, stages)
+        lock["stages"] = {**upstream, running: record}
+    reports = _reports(Path(repo_root))
+    for stage in lock["stages"].values():
+        for key in ("deps", "outs"):
+            stage[key] = [{"path": r["path"]} if r["path"] in reports else r for r in stage.get(key, [])]
     entities: dict[str, dict[str, Any]] = {}
     activities: dict[str, dict[str, Any]] = {}
     relations: dict[str, dict[str, dict[str, Any]]] = {
@@ -127,22 +164,22 @@ def prov_document(lock_path: Path, repo_root: Path, published: Path, running: st
             entity = f"path:{record['path']}"
             entities.setdefault(entity, _path_entity(record))
             stage_inputs[activity].append(entity)
-            relate("used", **{"prov:activity": activity, "prov:entity": entity, "dvc:md5": _digest(record)})
+            relate("used", **{"prov:activity": activity, "prov:entity": entity, **_md5(record)})
         for record in stage.get("outs", []):
             entity = f"path:{record['path']}"
             entities[entity] = _path_entity(record)  # the generating record describes the file best
-            relate("wasGeneratedBy", **{"prov:entity": entity, "prov:activity": activity, "dvc:md5": _digest(record)})
+            relate("wasGeneratedBy", **{"prov:entity": entity, "prov:activity": activity, **_md5(record)})
             generated_in.append((os.path.normpath(os.path.join(root, record["path"])), entity, activity))
 
     published = Path(published)
-    for rel in _listed_files(published):
+    for rel in listed_files(published):
         if rel == PROVENANCE_NAME or rel == SUMS_NAME:
             continue
         absolute = os.path.normpath(os.path.join(os.path.abspath(published), rel))
         entity = f"path:{Path(os.path.relpath(absolute, root)).as_posix()}"
         file = published / rel
         entities[entity] = {"prov:label": rel, **entities.get(entity, {}),  # a file the lock names keeps its record
-                            "emogait:sha256": _sha256(file), "emogait:size": file.stat().st_size}
+                            "emogait:sha256": file_sha256(file), "emogait:size": file.stat().st_size}
         holders = [(out, ent, act) for out, ent, act in generated_in if _holds(out, absolute)]
         if not holders:
             continue

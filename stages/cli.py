@@ -96,6 +96,13 @@ def _cmd_export_bvh(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_audit(args: argparse.Namespace) -> int:
+    from stages.audit import main as audit
+
+    audit(Path(args.params) if args.params else None, directory=Path(args.directory), out=Path(args.out))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="emogait", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -119,6 +126,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="published directory")
     p.add_argument("--out", default=".", help="output folder (one <gait id>.bvh per gait)")
     p.set_defaults(func=_cmd_export_bvh)
+    p = sub.add_parser("audit", help="label and quality audit of a published directory (HTML, plots, metrics)")
+    p.add_argument("directory", help="a published gait directory (ours or a downloaded copy)")
+    p.add_argument("--out", default="audit", help="output folder (index.html, metrics.json, *.png)")
+    p.add_argument("--params", help="params file for the classifier settings (default: the repository's)")
+    p.set_defaults(func=_cmd_audit)
     p = sub.add_parser("pin", help="pin every file a source manifest's globs find (sha256) into the manifest")
     p.add_argument("manifest", help=f"e.g. {SOURCES.relative_to(REPO)}/NAME.yaml")
     p.add_argument("--mocap-root", help="default: params.yaml data.mocap_root")

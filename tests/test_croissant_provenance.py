@@ -302,6 +302,9 @@ def test_every_stage_is_an_activity_and_every_path_an_entity_with_its_edges(publ
     assert set(lock["stages"]) >= {"ingest", "annotate", "validate_contacts", "split", "train", "evaluate"}
     assert set(doc["activity"]) == {f"stage:{name}" for name in lock["stages"]}
     used, generated = _edges(doc, "used", "prov:activity", "prov:entity"), set()
+    spec = yaml.safe_load((REPO / "dvc.yaml").read_text())["stages"]
+    measured = {next(iter(i)) for st in spec.values() for key in ("metrics", "plots") for i in st.get(key, [])}
+    assert "reports/train.json" in measured
     for name, stage in lock["stages"].items():
         activity = doc["activity"][f"stage:{name}"]
         assert activity["dvc:cmd"] == stage["cmd"] and json.loads(activity["dvc:params"]) == stage.get("params", {})
@@ -310,7 +313,10 @@ def test_every_stage_is_an_activity_and_every_path_an_entity_with_its_edges(publ
             assert doc["entity"][f"path:{dep['path']}"]["dvc:path"] == dep["path"]
         for out in stage.get("outs", []):
             entity = doc["entity"][f"path:{out['path']}"]
-            assert (entity["dvc:md5"], entity["dvc:size"]) == (out["md5"], out["size"])
+            if out["path"] in measured:  # metrics and plots: measurements, named without digests
+                assert "dvc:md5" not in entity and "dvc:size" not in entity
+            else:
+                assert (entity["dvc:md5"], entity["dvc:size"]) == (out["md5"], out["size"])
             generated.add((f"path:{out['path']}", f"stage:{name}"))
     assert _edges(doc, "wasGeneratedBy", "prov:entity", "prov:activity") == generated  # no publish stage: no more
     assert _edges(doc, "wasAssociatedWith", "prov:activity", "prov:agent") == {
@@ -388,3 +394,17 @@ def test_a_published_file_the_lock_names_keeps_its_dvc_record(published, tmp_pat
     assert [r["prov:activity"] for r in generated] == ["stage:publish"]
     readme = f"path:{Path(os.path.relpath(directory / 'README.md', REPO)).as_posix()}"
     assert readme in doc["entity"] and all(r["prov:entity"] != readme for r in doc["wasGeneratedBy"].values())
+
+
+def test_the_running_publish_stage_records_its_lineage_whatever_ran_after_it(published, tmp_path):
+    """Run inside `publish`, the document holds the stages publish depends on (transitively) and publish itself
+    from dvc.yaml, so a lock that also holds later stages (audit) or an older publish entry gives the same bytes."""
+    directory, _ = published
+    doc = prov_document(LOCK, REPO, directory, running="publish")
+    assert set(doc["activity"]) == {f"stage:{s}" for s in ("ingest", "annotate", "split", "train", "synthesize",
+                                                           "publish")}
+    lock = _lock()
+    earlier = {**lock, "stages": {k: v for k, v in lock["stages"].items() if k not in ("publish", "audit")}}
+    path = tmp_path / "dvc.lock"
+    path.write_text(yaml.safe_dump(earlier, sort_keys=False))
+    assert json.dumps(prov_document(path, REPO, directory, running="publish")) == json.dumps(doc)

@@ -57,6 +57,7 @@ def test_dvc_repro_runs_every_stage_then_is_a_noop(tmp_path):
     assert (work / "reports/eval.md").read_text().startswith("# Generator evaluation")
     published = work / "data/published/synthesized_emotive_gaits"
     check_published(published, work)
+    check_audit(work / "reports/audit", published, tmp_path)
     data_files = sorted(published.glob("gaits*"))
     before = {f.name: hashlib.sha256(f.read_bytes()).hexdigest() for f in data_files}
     _run(dvc + ["repro", "-f", "-s", "synthesize"], work, env)
@@ -123,6 +124,24 @@ def check_published(published: Path, work: Path) -> None:
     assert report["gaits"] == 5000 and report["copied_real_frames"] == 0 and report["finite"]
     assert report["emotion_novelty"]["passed"] and report["trajectory_novelty"]["passed"]
     assert sorted(p.name for p in (published / "previews").glob("*.png"))
+
+
+def check_audit(reports: Path, published: Path, tmp_path: Path) -> None:
+    """The audit stage's report, and `emogait audit` on a copy of the published directory moved elsewhere."""
+    from stages.cli import main as emogait
+
+    metrics = json.loads((reports / "metrics.json").read_text())
+    assert metrics["problem_count"] == 0 and metrics["kinds"]["synthetic"] == 5000
+    recognition = metrics["recognisability"]
+    assert recognition["real_test"]["accuracy_mean"] > recognition["chance_accuracy"] + 0.25  # real labels are learnable
+    assert set(recognition["augmentation_delta"]) == {"accuracy", "macro_f1"}
+    page = (reports / "index.html").read_text()
+    assert page.count("data:image/png;base64,") == len(list(reports.glob("*.png"))) == 6
+    moved = tmp_path / "downloads" / "someone_elses_copy"
+    shutil.copytree(published, moved)
+    assert emogait(["audit", str(moved), "--out", str(tmp_path / "their_audit")]) == 0
+    theirs = json.loads((tmp_path / "their_audit" / "metrics.json").read_text())
+    assert theirs["labels"] == metrics["labels"] and theirs["recognisability"] == recognition
 
 
 @pytest.mark.parametrize("stage", sorted(DVC))

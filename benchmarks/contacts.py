@@ -2,7 +2,7 @@
 
 Both detectors see the same heel/toe (and, for Zeni, pelvis) tracks of every C3D trial with annotated foot
 strikes / foot offs (``stages.validate_contacts.load_trials``), and are scored by the same rules
-(``pipeline.contact_validation``: one-to-one matching per foot and kind within ``tolerance_s``, false events
+(``pipeline.annotate.contact_validation``: one-to-one matching per foot and kind within ``tolerance_s``, false events
 inside the annotated span). Printed, as JSON: per detector the overall figures (matched fraction of all and of
 evaluable annotated events, median / 90th-percentile absolute error, mean signed error, false events per
 second), the per-file matched fractions and median errors, and the wall time each detector took over all
@@ -25,7 +25,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-from pipeline.contact_validation import DETECTORS, acceptance, our_events, validate, zeni_events  # noqa: E402
+from pipeline.annotate.contact_validation import DETECTORS, acceptance, our_events, validate, zeni_events  # noqa: E402
 from stages.common import SOURCES, load_params, mocap_root  # noqa: E402
 from stages.validate_contacts import contact_config, load_trials, validation_config  # noqa: E402
 

@@ -1,4 +1,4 @@
-"""Generation benchmark: agent-frames per second of batched generation (pipeline.generation.generate) on this machine.
+"""Generation benchmark: agent-frames per second of batched generation (pipeline.generators.autoregressive.rollout.generate) on this machine.
 
 For each batch size N in ``--agents``: N seed gaits (test-split windows of data/split/gaits.parquet, cycled when
 there are fewer), a sharp-turn path each, a per-frame emotion, ``--steps`` generated frames in ONE call. Timed
@@ -26,12 +26,12 @@ sys.path.insert(0, str(REPO))
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
-from pipeline.evaluation import turn_path  # noqa: E402
-from pipeline.gait_table import read_gaits  # noqa: E402
-from pipeline.generation import PlacementConfig, Seeds, generate, place_paths  # noqa: E402
-from pipeline.generator import EmotiveGaitNet, GeneratorConfig  # noqa: E402
-from pipeline.skeleton import load_skeleton  # noqa: E402
-from pipeline.training import load_checkpoint  # noqa: E402
+from pipeline.evaluation.autoregressive import turn_path  # noqa: E402
+from pipeline.io.gait_table import read_gaits  # noqa: E402
+from pipeline.generators.autoregressive.rollout import PlacementConfig, Seeds, generate, place_paths  # noqa: E402
+from pipeline.generators.autoregressive.network import EmotiveGaitNet, GeneratorConfig  # noqa: E402
+from pipeline.core.skeleton import load_skeleton  # noqa: E402
+from pipeline.generators.autoregressive.training import load_checkpoint  # noqa: E402
 from stages.common import SKELETON, load_params  # noqa: E402
 from stages.synthesize import Synthesis  # noqa: E402
 

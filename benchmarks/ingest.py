@@ -2,7 +2,7 @@
 
 What it measures, in one run:
 
-1. ``ours``: ``pipeline.ingest.ingest_chunk`` run serially in this one process over every chunk of every
+1. ``ours``: ``pipeline.ingest.run.ingest_chunk`` run serially in this one process over every chunk of every
    source manifest (``plan_chunks``; the default data is 361 BVH files, ~78k source frames). That is the
    whole per-file ingest: read bytes, sha256, BVH parse, forward kinematics, retarget, bone rotations,
    resampling and gait windows. ``ingest_chunk`` pins torch to one thread, so this is the rate of one core.
@@ -49,10 +49,10 @@ sys.path.insert(0, str(REPO))
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
-from pipeline.ingest import IngestConfig, _sha256, ingest_chunk, missing_data_message, plan_chunks  # noqa: E402
-from pipeline.readers.bvh import read_bvh  # noqa: E402
-from pipeline.skeleton import load_skeleton  # noqa: E402
-from pipeline.sources import SourceManifest, load_manifests  # noqa: E402
+from pipeline.ingest.run import IngestConfig, _sha256, ingest_chunk, missing_data_message, plan_chunks  # noqa: E402
+from pipeline.io.readers.bvh import read_bvh  # noqa: E402
+from pipeline.core.skeleton import load_skeleton  # noqa: E402
+from pipeline.io.manifests import SourceManifest, load_manifests  # noqa: E402
 from stages.common import PARAMS, SKELETON, SOURCES, load_params, mocap_root  # noqa: E402
 
 TARGET_RATIO = 300

@@ -5,7 +5,7 @@ A published directory holds
     gaits.parquet, or shards gaits-*.parquet (read in name order)
         one row per gait; array columns are fixed_size_list<float32> (row-major) with their per-gait shapes,
         joint names, parents, emotion order and units in the schema metadata key ``emogait``
-        (see ``pipeline.gait_table``); a null array row means "absent" (e.g. an unlabelled gait's emotion);
+        (see ``pipeline.io.gait_table``); a null array row means "absent" (e.g. an unlabelled gait's emotion);
     gaits.h5
         the same columns stacked along axis 0, the gait axis, in the same row order: numeric datasets chunked
         with gzip + shuffle + fletcher32, null array rows stored as NaN; string columns as variable-length
@@ -37,7 +37,7 @@ import pyarrow.parquet as pq
 import torch
 from torch.utils.data import Dataset
 
-from pipeline.gait_table import EMOTIONS, atomic_path, column_array
+from pipeline.io.gait_table import EMOTIONS, atomic_path, column_array
 
 ID_COLUMN = "gait_id"
 REQUIRED_COLUMNS = (ID_COLUMN, "kind", "positions", "rotations")  # present, and never null

@@ -6,11 +6,11 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.annotate import ANNOTATION_META, AnnotateConfig, annotate_windows
-from pipeline.contacts import CONTACT_POINTS, ContactConfig
-from pipeline.gait_table import read_gaits, with_arrays, write_json_atomic, write_parquet_atomic
-from pipeline.preview import AnnotatedClip, render_annotation
-from pipeline.skeleton import load_skeleton
+from pipeline.annotate.annotation import ANNOTATION_META, AnnotateConfig, annotate_windows
+from pipeline.ops.contacts import CONTACT_POINTS, ContactConfig
+from pipeline.io.gait_table import read_gaits, with_arrays, write_json_atomic, write_parquet_atomic
+from pipeline.viz.stick_figures import AnnotatedClip, render_annotation
+from pipeline.core.skeleton import load_skeleton
 from stages.common import REPO, SKELETON, load_params
 
 IN_GAITS = REPO / "data" / "ingested" / "gaits.parquet"

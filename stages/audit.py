@@ -12,7 +12,7 @@ from typing import Any
 
 import torch
 
-from pipeline.audit import (
+from pipeline.audit.metrics import (
     ClassifierConfig,
     all_problems,
     feature_distances,
@@ -22,7 +22,7 @@ from pipeline.audit import (
     recognisability,
     transition_counts,
 )
-from pipeline.audit_report import (
+from pipeline.audit.report import (
     plot_confusions,
     plot_feature_distances,
     plot_features,
@@ -31,7 +31,7 @@ from pipeline.audit_report import (
     plot_transitions,
     write_html,
 )
-from pipeline.gait_table import write_json_atomic
+from pipeline.io.gait_table import write_json_atomic
 from stages.common import REPO, load_params
 
 PUBLISHED = REPO / "data" / "published" / "synthesized_emotive_gaits"

@@ -34,7 +34,7 @@ def _cmd_stage(args: argparse.Namespace) -> int:
 
 
 def _cmd_preview(args: argparse.Namespace) -> int:
-    from pipeline.preview import Motion, render_filmstrip, render_gif
+    from pipeline.viz.stick_figures import Motion, render_filmstrip, render_gif
     from stages.preview import bvh_motions, gait_motions
 
     motions: list[Motion] = []
@@ -70,9 +70,9 @@ def _cmd_pin(args: argparse.Namespace) -> int:
 
 def _cmd_export_bvh(args: argparse.Namespace) -> int:
     """Write gaits of a published directory as BVH files on the canonical skeleton."""
-    from pipeline.bvh_export import bvh_file_name, write_bvh
+    from pipeline.io.bvh_writer import bvh_file_name, write_bvh
     from pipeline.dataset import directory_metadata, gaits_by_id
-    from pipeline.skeleton import load_skeleton
+    from pipeline.core.skeleton import load_skeleton
     from stages.common import SKELETON
 
     skeleton = load_skeleton(SKELETON)

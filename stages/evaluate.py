@@ -2,7 +2,7 @@
 
 data/split/gaits.parquet + data/models/*.pt -> reports/eval.json (DVC metrics), reports/eval.md (the tables),
 reports/eval_errors.png (error per predicted frame), reports/eval_rollouts.png (rollout paths and speeds),
-reports/eval_preview.png (stick figures of generated gaits). See pipeline/evaluation.py for the protocols.
+reports/eval_preview.png (stick figures of generated gaits). See pipeline/evaluation/autoregressive.py for the protocols.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from pipeline.contacts import ContactConfig
-from pipeline.evaluation import (
+from pipeline.ops.contacts import ContactConfig
+from pipeline.evaluation.autoregressive import (
     EMOTION_NAMES,
     affect_summary,
     emotion_centroids,
@@ -27,11 +27,11 @@ from pipeline.evaluation import (
     table1,
     transitions,
 )
-from pipeline.gait_table import read_gaits, write_json_atomic
-from pipeline.generation import PlacementConfig, Seeds
-from pipeline.skeleton import load_skeleton
+from pipeline.io.gait_table import read_gaits, write_json_atomic
+from pipeline.generators.autoregressive.rollout import PlacementConfig, Seeds
+from pipeline.core.skeleton import load_skeleton
 from pipeline.split import dominant_emotion
-from pipeline.training import GaitTensors, load_checkpoint
+from pipeline.generators.autoregressive.training import GaitTensors, load_checkpoint
 from stages.common import REPO, SKELETON, load_params
 
 IN_GAITS = REPO / "data" / "split" / "gaits.parquet"
@@ -283,7 +283,7 @@ def plot_rollouts(rollouts: dict, report: dict, path: Path) -> None:
 
 
 def preview(rollouts: dict, skeleton, path: Path) -> None:
-    from pipeline.preview import Motion, render_filmstrip
+    from pipeline.viz.stick_figures import Motion, render_filmstrip
 
     motions = []
     for kind in ("straight", "sharp_turn"):

@@ -6,11 +6,11 @@ import os
 import sys
 from pathlib import Path
 
-from pipeline.gait_table import to_table, write_json_atomic, write_parquet_atomic
-from pipeline.ingest import IngestConfig, missing_data_message, run_ingest
-from pipeline.preview import Motion, render_filmstrip
-from pipeline.skeleton import load_skeleton
-from pipeline.sources import load_manifests
+from pipeline.io.gait_table import to_table, write_json_atomic, write_parquet_atomic
+from pipeline.ingest.run import IngestConfig, missing_data_message, run_ingest
+from pipeline.viz.stick_figures import Motion, render_filmstrip
+from pipeline.core.skeleton import load_skeleton
+from pipeline.io.manifests import load_manifests
 from stages.common import REPO, SKELETON, SOURCES, load_params, mocap_root
 
 OUT_GAITS = REPO / "data" / "ingested" / "gaits.parquet"

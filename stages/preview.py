@@ -8,13 +8,13 @@ from typing import Any
 
 import numpy as np
 
-from pipeline.gait_table import read_gaits, read_metadata
-from pipeline.ingest import IngestConfig, ingest_chunk
-from pipeline.preview import Motion
-from pipeline.readers.bvh import read_bvh
-from pipeline.retarget import bvh_point_positions
-from pipeline.skeleton import load_skeleton
-from pipeline.sources import load_manifest
+from pipeline.io.gait_table import read_gaits, read_metadata
+from pipeline.ingest.run import IngestConfig, ingest_chunk
+from pipeline.viz.stick_figures import Motion
+from pipeline.io.readers.bvh import read_bvh
+from pipeline.ingest.retarget import bvh_point_positions
+from pipeline.core.skeleton import load_skeleton
+from pipeline.io.manifests import load_manifest
 from stages.common import SKELETON, SOURCES, mocap_root
 
 

@@ -15,12 +15,12 @@ import numpy as np
 import pyarrow as pa
 import yaml
 
-from pipeline.croissant import croissant_metadata, croissant_problems, write_croissant
+from pipeline.publish.croissant import croissant_metadata, croissant_problems, write_croissant
 from pipeline.dataset import HDF5_NAME, verify, write_hdf5_atomic, write_sha256sums
-from pipeline.gait_table import atomic_path, column_array, read_gaits, write_json_atomic, write_parquet_atomic
-from pipeline.preview import Motion, render_filmstrip
-from pipeline.provenance import prov_document, write_provenance
-from pipeline.publish import COLUMN_DESCRIPTIONS, composition, dataset_card, published_table, real_table
+from pipeline.io.gait_table import atomic_path, column_array, read_gaits, write_json_atomic, write_parquet_atomic
+from pipeline.viz.stick_figures import Motion, render_filmstrip
+from pipeline.publish.provenance import prov_document, write_provenance
+from pipeline.publish.table import COLUMN_DESCRIPTIONS, composition, dataset_card, published_table, real_table
 from stages.common import REPO, SOURCES, load_params
 
 IN_REAL = REPO / "data" / "split" / "gaits.parquet"

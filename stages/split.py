@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pyarrow as pa
 
-from pipeline.gait_table import EMOTIONS, read_gaits, write_json_atomic, write_parquet_atomic
+from pipeline.io.gait_table import EMOTIONS, read_gaits, write_json_atomic, write_parquet_atomic
 from pipeline.split import assign_splits, dominant_emotion, split_report
 from stages.common import REPO, load_params
 

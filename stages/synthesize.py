@@ -17,10 +17,10 @@ import numpy as np
 import pyarrow as pa
 import torch
 
-from pipeline.gait_table import atomic_path, read_gaits, write_json_atomic, write_parquet_atomic
-from pipeline.generation import PlacementConfig
-from pipeline.generator import EmotiveGaitNet
-from pipeline.plan import (
+from pipeline.io.gait_table import atomic_path, read_gaits, write_json_atomic, write_parquet_atomic
+from pipeline.generators.autoregressive.rollout import PlacementConfig
+from pipeline.generators.autoregressive.network import EmotiveGaitNet
+from pipeline.synth.plan import (
     Trajectory,
     build_plan,
     distinct_labels,
@@ -35,11 +35,11 @@ from pipeline.plan import (
     training_paths,
     trajectories_from_params,
 )
-from pipeline.preview import render_trajectories
-from pipeline.publish import synthetic_table
-from pipeline.skeleton import load_skeleton
-from pipeline.synthesis import SynthesisConfig, copied_frames, synthesize
-from pipeline.training import load_checkpoint
+from pipeline.viz.stick_figures import render_trajectories
+from pipeline.publish.table import synthetic_table
+from pipeline.core.skeleton import load_skeleton
+from pipeline.synth.synthesis import SynthesisConfig, copied_frames, synthesize
+from pipeline.generators.autoregressive.training import load_checkpoint
 from stages.annotate import config as annotate_config
 from stages.common import REPO, SKELETON, load_params
 

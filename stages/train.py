@@ -19,10 +19,10 @@ from typing import Any
 import numpy as np
 import torch
 
-from pipeline.gait_table import atomic_path, read_gaits, write_json_atomic
-from pipeline.generator import GeneratorConfig, LossWeights
-from pipeline.skeleton import load_skeleton
-from pipeline.training import (
+from pipeline.io.gait_table import atomic_path, read_gaits, write_json_atomic
+from pipeline.generators.autoregressive.network import GeneratorConfig, LossWeights
+from pipeline.core.skeleton import load_skeleton
+from pipeline.generators.autoregressive.training import (
     GaitTensors,
     TrainConfig,
     checkpoint_bytes,

@@ -4,7 +4,7 @@ Reads every C3D source manifest, checks each pinned file's sha256, takes the tri
 strikes / foot offs and writes reports/contacts.json (figures of our detector and of the Zeni et al. 2008
 reference, overall and per file) and reports/contacts.png (heel/toe heights with annotated and derived
 events). Contact thresholds come from params.yaml ``annotate.contacts`` (the ones annotation uses);
-validation settings from ``validate_contacts`` (defaults in pipeline.contact_validation.ValidationConfig).
+validation settings from ``validate_contacts`` (defaults in pipeline.annotate.contact_validation.ValidationConfig).
 """
 
 from __future__ import annotations
@@ -14,18 +14,18 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from pipeline.contact_validation import (
+from pipeline.annotate.contact_validation import (
     ValidationConfig,
     acceptance,
     prepare_trial,
     render_contacts,
     validate,
 )
-from pipeline.contacts import ContactConfig
-from pipeline.gait_table import write_json_atomic
-from pipeline.markers import MarkerRuleError
-from pipeline.readers.c3d import C3dError, read_c3d
-from pipeline.sources import load_manifests
+from pipeline.ops.contacts import ContactConfig
+from pipeline.io.gait_table import write_json_atomic
+from pipeline.ingest.markers import MarkerRuleError
+from pipeline.io.readers.c3d import C3dError, read_c3d
+from pipeline.io.manifests import load_manifests
 from stages.common import REPO, SOURCES, load_params, mocap_root
 
 OUT_REPORT = REPO / "reports" / "contacts.json"

@@ -6,10 +6,10 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.gait_table import read_gaits, to_table, write_parquet_atomic
-from pipeline.ingest import IngestConfig, run_ingest
-from pipeline.skeleton import load_skeleton
-from pipeline.sources import load_manifests
+from pipeline.io.gait_table import read_gaits, to_table, write_parquet_atomic
+from pipeline.ingest.run import IngestConfig, run_ingest
+from pipeline.core.skeleton import load_skeleton
+from pipeline.io.manifests import load_manifests
 from stages.common import REPO, SKELETON, SOURCES, load_params, mocap_root
 
 MOCAP = mocap_root(load_params())
@@ -55,8 +55,8 @@ def repo_path(*parts: str) -> Path:
 @pytest.fixture(scope="session")
 def annotated(tmp_path_factory, full_ingest, skeleton):
     """The annotate stage's output for the full ingest, written and read back as the stage does."""
-    from pipeline.annotate import ANNOTATION_META, annotate_windows
-    from pipeline.gait_table import with_arrays
+    from pipeline.annotate.annotation import ANNOTATION_META, annotate_windows
+    from pipeline.io.gait_table import with_arrays
     from stages.annotate import config
 
     cfg = config(load_params())

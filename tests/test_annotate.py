@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import torch
 
-from pipeline.annotate import AnnotateConfig, annotate_clip, rebuild_clips
-from pipeline.contacts import ContactConfig, foot_contacts, foot_events, median_filter, phase_rate, stepping_phase
+from pipeline.annotate.annotation import AnnotateConfig, annotate_clip, rebuild_clips
+from pipeline.ops.contacts import ContactConfig, foot_contacts, foot_events, median_filter, phase_rate, stepping_phase
 
 
 def test_stepping_phase_is_linear_between_strikes():

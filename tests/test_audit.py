@@ -10,9 +10,9 @@ import numpy as np
 import pyarrow as pa
 import pytest
 
-from pipeline.audit import js_distance, normalised_entropy, scores
+from pipeline.audit.metrics import js_distance, normalised_entropy, scores
 from pipeline.dataset import write_sha256sums
-from pipeline.gait_table import array_column, column_array
+from pipeline.io.gait_table import array_column, column_array
 from stages.audit import main as audit
 from tests.test_croissant_provenance import _publish, _published_table
 

@@ -22,10 +22,10 @@ import numpy as np
 import pytest
 import yaml
 
-from pipeline.ingest import IngestConfig, run_ingest
-from pipeline.readers.bvh import VALID_CHANNELS, BvhError, parse_bvh, read_bvh
-from pipeline.skeleton import load_skeleton
-from pipeline.sources import load_manifest
+from pipeline.ingest.run import IngestConfig, run_ingest
+from pipeline.io.readers.bvh import VALID_CHANNELS, BvhError, parse_bvh, read_bvh
+from pipeline.core.skeleton import load_skeleton
+from pipeline.io.manifests import load_manifest
 
 REPO = Path(__file__).resolve().parents[1]
 BASE_BVH = REPO.parent / "shared/data/mocap/cmu_bvh11/resources/131_01.bvh"

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 import torch
 
-from pipeline.bvh_export import CM_PER_M, ROTATION_ORDER, bvh_text, export_hierarchy, write_bvh
-from pipeline.kinematics import canonical_positions
-from pipeline.quaternion import axis_angle, euler_to_quat, quat_to_euler
-from pipeline.readers.bvh import read_bvh
-from pipeline.retarget import bvh_point_positions
+from pipeline.io.bvh_writer import CM_PER_M, ROTATION_ORDER, bvh_text, export_hierarchy, write_bvh
+from pipeline.ops.kinematics import canonical_positions
+from pipeline.ops.quaternion import axis_angle, euler_to_quat, quat_to_euler
+from pipeline.io.readers.bvh import read_bvh
+from pipeline.ingest.retarget import bvh_point_positions
 
 TOLERANCE_M = 1e-3
 

@@ -7,8 +7,8 @@ import pytest
 import torch
 from bvh import Bvh
 
-from pipeline.readers.bvh import parse_bvh, read_bvh
-from pipeline.retarget import bvh_point_positions
+from pipeline.io.readers.bvh import parse_bvh, read_bvh
+from pipeline.ingest.retarget import bvh_point_positions
 from tests.conftest import MOCAP
 
 SHARED_ROWS = [r for r in csv.DictReader(open(MOCAP / "manifest.csv")) if r["kind"] == "bvh"]
@@ -103,7 +103,7 @@ TOKENS_BAD = ["1_0", "0x10", "nan", "-inf", "1e400", "1e", "--1", ".", "1.2.3", 
 
 
 def test_bulk_parser_is_bit_identical_to_python_float():
-    from pipeline.readers import bvh
+    from pipeline.io.readers import bvh
 
     line = " ".join(TOKENS_OK)
     got = bvh._bulk_frames(f"{line}\n{line}\r\n", 2, len(TOKENS_OK))
@@ -114,7 +114,7 @@ def test_bulk_parser_is_bit_identical_to_python_float():
 
 
 def test_c_and_arrow_paths_agree_on_every_real_file():
-    from pipeline.readers import bvh
+    from pipeline.io.readers import bvh
 
     assert bvh._motion is not None, "the C parser is not built: `pip install -e .` compiles it"
     for row in SHARED_ROWS[::7] + SHARED_ROWS[-12:]:

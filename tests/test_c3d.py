@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 import yaml
 
-from pipeline.ingest import IngestConfig, run_ingest
-from pipeline.markers import fill_short_gaps, harrington_hip_centres, runs
-from pipeline.readers.c3d import C3dError, positions_m_y_up, read_c3d
-from pipeline.sources import load_manifest
+from pipeline.ingest.run import IngestConfig, run_ingest
+from pipeline.ingest.markers import fill_short_gaps, harrington_hip_centres, runs
+from pipeline.io.readers.c3d import C3dError, positions_m_y_up, read_c3d
+from pipeline.io.manifests import load_manifest
 from tests.conftest import MOCAP, repo_path
 
 MANIFEST = repo_path("manifests", "sources", "c3d_org_samples.yaml")

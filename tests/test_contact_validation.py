@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from pipeline.contact_validation import (
+from pipeline.annotate.contact_validation import (
     Event,
     ValidationConfig,
     acceptance,
@@ -17,7 +17,7 @@ from pipeline.contact_validation import (
     summarize,
     validate,
 )
-from pipeline.contacts import ContactConfig
+from pipeline.ops.contacts import ContactConfig
 from stages import validate_contacts
 from stages.common import SOURCES, load_params
 from tests.conftest import MOCAP

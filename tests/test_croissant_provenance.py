@@ -23,10 +23,10 @@ import pyarrow.compute as pc
 import pytest
 import yaml
 
-from pipeline.croissant import (CROISSANT_NAME, croissant_metadata, croissant_problems, write_croissant)
+from pipeline.publish.croissant import (CROISSANT_NAME, croissant_metadata, croissant_problems, write_croissant)
 from pipeline.dataset import read_table, verify, write_hdf5_atomic, write_sha256sums
-from pipeline.gait_table import array_column, column_array, write_parquet_atomic
-from pipeline.provenance import PROVENANCE_NAME, prov_document, write_provenance
+from pipeline.io.gait_table import array_column, column_array, write_parquet_atomic
+from pipeline.publish.provenance import PROVENANCE_NAME, prov_document, write_provenance
 from stages.common import REPO
 
 LOCK = REPO / "dvc.lock"

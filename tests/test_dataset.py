@@ -22,7 +22,7 @@ from pipeline.dataset import (
     write_hdf5_atomic,
     write_sha256sums,
 )
-from pipeline.gait_table import array_column, column_array, write_parquet_atomic
+from pipeline.io.gait_table import array_column, column_array, write_parquet_atomic
 
 
 def _pick_rows(table: pa.Table, per_source: int = 3) -> list[int]:

@@ -108,8 +108,8 @@ def check_published(published: Path, work: Path) -> None:
     item = GaitDataset(published)[len(frame) - 1]
     assert tuple(item["positions"].shape) == (60, 21, 3)
     # BVH export of a real and a synthetic gait, read back by our own reader: the same positions (< 1 mm)
-    from pipeline.bvh_export import bvh_file_name
-    from pipeline.skeleton import load_skeleton
+    from pipeline.io.bvh_writer import bvh_file_name
+    from pipeline.core.skeleton import load_skeleton
     from stages.cli import main as emogait
     from stages.common import SKELETON
     from tests.test_bvh_export import TOLERANCE_M, _bvh_positions

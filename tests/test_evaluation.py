@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from pipeline.contacts import ContactConfig
-from pipeline.evaluation import EMOTION_NAMES, affect_summary, emotion_centroids, pose_errors, skating_speed
+from pipeline.ops.contacts import ContactConfig
+from pipeline.evaluation.autoregressive import EMOTION_NAMES, affect_summary, emotion_centroids, pose_errors, skating_speed
 from pipeline.split import dominant_emotion
-from pipeline.training import GaitTensors
+from pipeline.generators.autoregressive.training import GaitTensors
 
 
 def _walks(annotated):

@@ -6,15 +6,15 @@ import numpy as np
 import pytest
 import torch
 
-from pipeline.features import (
+from pipeline.ops.features import (
     AFFECTIVE_FEATURES,
     affective_features,
     heron_area,
     movement_features,
     pose_affective_features,
 )
-from pipeline.kinematics import canonical_positions
-from pipeline.quaternion import axis_angle, qnormalize
+from pipeline.ops.kinematics import canonical_positions
+from pipeline.ops.quaternion import axis_angle, qnormalize
 
 D = torch.float64
 
@@ -108,7 +108,7 @@ def test_affective_features_ignore_uniform_scale_and_rotation_about_y(full_inges
     pos = torch.from_numpy(full_ingest["arrays"]["positions"][::40]).double()  # ~50 real gaits
     f = affective_features(pos)
     turn = axis_angle(torch.tensor([0.0, 1.0, 0.0], dtype=D), torch.tensor(1.234, dtype=D))
-    from pipeline.quaternion import qrot
+    from pipeline.ops.quaternion import qrot
 
     moved = qrot(turn.expand(pos.shape[:-1] + (4,)), pos) * 1.7 + torch.tensor([3.0, 0.2, -5.0], dtype=D)
     assert torch.allclose(affective_features(moved), f, atol=1e-5)

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 import torch
 
-from pipeline.evaluation import constant_velocity, pose_errors, straight_path, turn_path, zero_velocity
-from pipeline.generation import PlacementConfig, Seeds, generate, lateral_deviation, place_paths, stance_step
-from pipeline.generator import FOOT_JOINTS, EmotiveGaitNet, GeneratorConfig, LossWeights, generator_losses
-from pipeline.quaternion import euler_to_quat, qangle, qnormalize, quat_to_euler
-from pipeline.training import (
+from pipeline.evaluation.autoregressive import constant_velocity, pose_errors, straight_path, turn_path, zero_velocity
+from pipeline.generators.autoregressive.rollout import PlacementConfig, Seeds, generate, lateral_deviation, place_paths, stance_step
+from pipeline.generators.autoregressive.network import FOOT_JOINTS, EmotiveGaitNet, GeneratorConfig, LossWeights, generator_losses
+from pipeline.ops.quaternion import euler_to_quat, qangle, qnormalize, quat_to_euler
+from pipeline.generators.autoregressive.training import (
     GaitTensors,
     TrainConfig,
     checkpoint_bytes,

@@ -4,8 +4,8 @@ import os
 
 from distributed import LocalCluster
 
-from pipeline.gait_table import to_table, write_parquet_atomic
-from pipeline.ingest import run_ingest
+from pipeline.io.gait_table import to_table, write_parquet_atomic
+from pipeline.ingest.run import run_ingest
 
 
 def test_local_scheduler_and_distributed_cluster_give_identical_parquet(tmp_path, full_ingest, manifests, skeleton,

@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pyarrow.parquet as pq
 
-from pipeline.gait_table import EMOTIONS, read_metadata
+from pipeline.io.gait_table import EMOTIONS, read_metadata
 from tests.conftest import MOCAP
 
 SOURCES = {"bandai_namco_motiondataset", "cmu_bvh11", "cmu_iclone", "pymo_demo", "bvh_python_tests"}
@@ -33,7 +33,7 @@ def test_all_five_bvh_sources_ingest(full_ingest):
 def test_manifests_pin_the_documented_files():
     rows = {r["local"]: r["sha256"] for r in csv.DictReader(open(MOCAP / "manifest.csv")) if r["kind"] == "bvh"}
     from stages.common import SOURCES as FOLDER
-    from pipeline.sources import load_manifests
+    from pipeline.io.manifests import load_manifests
 
     pinned = {f"{m.name}/{f.path}": f.sha256 for m in load_manifests(FOLDER) for f in m.files}
     assert pinned == rows

@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from pipeline.annotate import rebuild_clips
-from pipeline.plan import (
+from pipeline.annotate.annotation import rebuild_clips
+from pipeline.synth.plan import (
     arc_lengths,
     build_plan,
     frame_emotions,
@@ -23,7 +23,7 @@ from pipeline.plan import (
     transition_rounds,
     travel_direction,
 )
-from pipeline.synthesis import copied_frames
+from pipeline.synth.synthesis import copied_frames
 from stages.common import load_params
 
 PARAMS = load_params()["synthesize"]

@@ -4,7 +4,7 @@ import math
 
 import torch
 
-from pipeline.quaternion import (
+from pipeline.ops.quaternion import (
     axis_angle,
     euler_to_quat,
     matrix_to_quat,

@@ -4,8 +4,8 @@ import math
 
 import torch
 
-from pipeline.quaternion import axis_angle, qangle
-from pipeline.resample import resample, target_times, window_starts
+from pipeline.ops.quaternion import axis_angle, qangle
+from pipeline.ops.resample import resample, target_times, window_starts
 
 D = torch.float64
 
@@ -26,8 +26,8 @@ def test_resampling_to_the_own_rate_reproduces_the_clip():
 
 
 def test_resampling_a_real_clip_to_its_own_rate_reproduces_it(manifests, skeleton):
-    from pipeline.readers.bvh import read_bvh
-    from pipeline.retarget import bvh_point_positions, map_joints, referenced_points, retarget_to_canonical
+    from pipeline.io.readers.bvh import read_bvh
+    from pipeline.ingest.retarget import bvh_point_positions, map_joints, referenced_points, retarget_to_canonical
     from tests.conftest import MOCAP
 
     m = manifests["pymo_demo"]

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import torch
 
-from pipeline.kinematics import canonical_positions
-from pipeline.readers.bvh import read_bvh
-from pipeline.retarget import bvh_point_positions, map_joints, referenced_points, retarget_to_canonical
+from pipeline.ops.kinematics import canonical_positions
+from pipeline.io.readers.bvh import read_bvh
+from pipeline.ingest.retarget import bvh_point_positions, map_joints, referenced_points, retarget_to_canonical
 from tests.conftest import MOCAP
 
 

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from pipeline.gait_table import EMOTIONS
+from pipeline.io.gait_table import EMOTIONS
 from pipeline.split import assign_splits, dominant_emotion, split_report
 
 FRACTIONS = {"train": 0.8, "val": 0.1, "test": 0.1}

@@ -1,0 +1,251 @@
+"""Generation API: seed gaits + target trajectories + per-frame emotions -> new gaits, N agents in one batch.
+
+For every agent the network continues its seed's prefix one frame at a time (its own predictions fed back,
+paper §4 and §5.4) and the root is placed from the predicted root features (paper §5.4-5.5):
+
+* advance (``root_advance``): ``stance_foot`` (default) moves the root so that the lowest heel/toe point stays
+  where it stood: the body walks by its own legs and the feet do not skate. The network's ŝ alone advances the
+  root faster than its strides carry it (feet then slide ~3.4x as fast as real stance feet: reports/eval.md), so
+  ŝ is kept as the network's input (it conditions the motion) but no longer places the root.
+  ``predicted_speed`` is the paper's placement: the root advances by ŝ (m/frame, clamped to [0, max_speed])
+  along the travel direction.
+* direction: the travel direction turns towards a point ``lookahead_m`` ahead on the target path (pure
+  pursuit), at most ``max_turn_deg_per_s``; so a path sharper than a person turns is cut, and the deviation
+  is measured, not hidden. With ``stance_foot`` the body's steps may run at an angle to the travel direction
+  (a pelvis turned relative to it); that angle, averaged over ``drift_seconds`` and at most ``max_drift_deg``,
+  is steered out so that the body, not the travel frame, follows the path;
+* pelvis: the predicted pelvis versor, which is relative to the direction of travel, turned to the travel
+  direction (so the body faces where the network's pelvis says, relative to where it walks: a side-stepping
+  seed keeps side-stepping);
+* height: the seed prefix's mean root height plus the predicted deviation ĥ.
+
+The next step's inputs are those of the placed frame: its versors, their affective features, ŝ, ĥ, δ̂, the
+curvature κ of the travel direction (steps of length ŝ), the stepping phase continued at the seed's rate, and
+the condition built from that frame's emotion (a NaN row: unlabelled, as for unlabelled training gaits).
+
+Deterministic: no random draws; the same inputs give the same outputs.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+
+from pipeline.generators.autoregressive.network import FOOT_JOINTS, EmotiveGaitNet, condition_vectors
+from pipeline.ops.kinematics import canonical_positions
+from pipeline.ops.quaternion import qmul, qrot, yaw
+from pipeline.generators.autoregressive.training import GaitTensors, extrapolated_phase, predicted_affective
+
+
+@dataclass(frozen=True)
+class PlacementConfig:
+    """params.yaml ``generate``."""
+
+    fps: float = 30.0
+    lookahead_m: float = 0.6
+    max_turn_deg_per_s: float = 240.0
+    max_speed_m_s: float = 3.0
+    root_advance: str = "stance_foot"  # or "predicted_speed"
+    stance_softness_m: float = 0.002
+    drift_seconds: float = 1.0
+    max_drift_deg: float = 15.0
+
+    @classmethod
+    def from_params(cls, generate: dict[str, Any], fps: float) -> PlacementConfig:
+        """From params.yaml ``generate`` (numbers and the ``root_advance`` name) at the gaits' frame rate."""
+        return cls(fps=float(fps), **{k: (v if isinstance(v, str) else float(v)) for k, v in generate.items()})
+
+    def __post_init__(self) -> None:
+        if self.root_advance not in ("stance_foot", "predicted_speed"):
+            raise ValueError(f"generate.root_advance: expected 'stance_foot' or 'predicted_speed', "
+                             f"found {self.root_advance!r}")
+
+
+@dataclass
+class Seeds:
+    """Prefix frames of N seed gaits (P frames each) and their body headings."""
+
+    gaits: GaitTensors  # (N, P, ...)
+    heading: torch.Tensor  # (N, P) rad, body heading about +Y (0 = facing +Z)
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray], rows: np.ndarray, prefix: int) -> Seeds:
+        heading = np.ascontiguousarray(arrays["heading"][rows][:, :prefix], dtype=np.float32)
+        return cls(gaits=prefix_of(GaitTensors.from_arrays(arrays, rows), prefix), heading=torch.from_numpy(heading))
+
+    def __len__(self) -> int:
+        return len(self.gaits)
+
+    def travel_direction(self) -> torch.Tensor:
+        """(N,) direction of travel at the last prefix frame (features.path_direction, over the seed window)."""
+        return self.gaits.direction[:, -1]
+
+
+def prefix_of(gaits: GaitTensors, frames: int) -> GaitTensors:
+    """The first ``frames`` frames of every gait (the per-gait condition is kept whole)."""
+    return GaitTensors(**{k: (v if k == "condition" else v[:, :frames]) for k, v in gaits.__dict__.items()})
+
+
+@dataclass
+class Generated:
+    rotations: torch.Tensor  # (N, S, 21, 4)
+    positions: torch.Tensor  # (N, S, 21, 3)
+    h: torch.Tensor  # (N, S) predicted root features
+    s: torch.Tensor
+    advance: torch.Tensor  # (N, S) horizontal distance the root moved into each frame (m/frame)
+    delta: torch.Tensor
+    theta: torch.Tensor  # (N, S) stepping phase fed to the network
+    condition: torch.Tensor  # (N, S, 5)
+    heading: torch.Tensor  # (N, S) body heading
+    travel: torch.Tensor  # (N, S) direction of travel the frame was placed with
+    versors: torch.Tensor  # (N, S, 21, 4) the network's versors (pelvis relative to the direction of travel)
+
+
+def wrap_angle(a: torch.Tensor) -> torch.Tensor:
+    return torch.remainder(a + math.pi, 2 * math.pi) - math.pi
+
+
+def place_paths(shapes: torch.Tensor, seeds: Seeds) -> torch.Tensor:
+    """Paths given in a local frame (K, 2) or (N, K, 2) as (x, z), starting at (0, 0) towards +z, moved to start at
+    each seed's last root position and turned to its travel direction -> (N, K, 2) world (x, z)."""
+    shapes = shapes.expand(len(seeds), *shapes.shape[-2:]) if shapes.dim() == 2 else shapes
+    angle = seeds.travel_direction()[:, None]
+    c, s = torch.cos(angle), torch.sin(angle)
+    x, z = shapes[..., 0], shapes[..., 1]
+    world = torch.stack((c * x + s * z, -s * x + c * z), dim=-1)  # +z turns to (sin α, cos α)
+    return world + seeds.gaits.root_position[:, -1, [0, 2]][:, None]
+
+
+def _closest_arc(points: torch.Tensor, paths: torch.Tensor, cumulative: torch.Tensor) -> torch.Tensor:
+    """Arc length (N,) along paths (N, K, 2) of the point closest to points (N, 2)."""
+    a, b = paths[:, :-1], paths[:, 1:]
+    ab = b - a
+    length2 = (ab * ab).sum(-1).clamp_min(1e-12)
+    u = (((points[:, None] - a) * ab).sum(-1) / length2).clamp(0.0, 1.0)
+    nearest = a + u[..., None] * ab
+    dist = torch.linalg.vector_norm(points[:, None] - nearest, dim=-1)
+    k = dist.argmin(-1)
+    rows = torch.arange(len(points))
+    return cumulative[rows, k] + u[rows, k] * torch.sqrt(length2[rows, k])
+
+
+def point_at_arc(paths: torch.Tensor, cumulative: torch.Tensor, arc: torch.Tensor) -> torch.Tensor:
+    """Points (N, 2) at arc length ``arc`` (N,) along paths; beyond the end the last segment is extended."""
+    k = torch.searchsorted(cumulative, arc[:, None]).squeeze(-1).clamp(1, paths.shape[1] - 1)
+    rows = torch.arange(len(arc))
+    a, b = paths[rows, k - 1], paths[rows, k]
+    seg = (cumulative[rows, k] - cumulative[rows, k - 1]).clamp_min(1e-9)
+    u = ((arc - cumulative[rows, k - 1]) / seg)[:, None]
+    return a + u * (b - a)
+
+
+def path_arcs(paths: torch.Tensor) -> torch.Tensor:
+    seg = torch.linalg.vector_norm(paths[:, 1:] - paths[:, :-1], dim=-1)
+    return torch.cat([torch.zeros_like(seg[:, :1]), seg.cumsum(-1)], dim=-1)
+
+
+def lateral_deviation(points: torch.Tensor, paths: torch.Tensor) -> torch.Tensor:
+    """Distance (..., S) of ground points (N, S, 2) to the polyline paths (N, K, 2)."""
+    a, b = paths[:, None, :-1], paths[:, None, 1:]
+    ab = b - a
+    u = (((points[:, :, None] - a) * ab).sum(-1) / (ab * ab).sum(-1).clamp_min(1e-12)).clamp(0.0, 1.0)
+    return torch.linalg.vector_norm(points[:, :, None] - (a + u[..., None] * ab), dim=-1).min(-1).values
+
+
+def _root_relative(root_rotation: torch.Tensor, joint_versors: torch.Tensor, height: torch.Tensor,
+                   offsets: torch.Tensor, parents: Sequence[int]) -> torch.Tensor:
+    """World-oriented joint positions (N, 21, 3) of a pose whose root stands at (0, height, 0)."""
+    root = torch.stack((torch.zeros_like(height), height, torch.zeros_like(height)), dim=-1)
+    return canonical_positions(root, torch.cat([root_rotation[:, None], joint_versors], dim=1), offsets, parents)
+
+
+def stance_step(previous_feet: torch.Tensor, feet: torch.Tensor, softness_m: float, max_step: float) -> torch.Tensor:
+    """Ground step (N, 2) of the root that keeps the stance foot where it stood.
+
+    previous_feet, feet: root-relative heel/toe points (N, 4, 3) of two consecutive frames. The stance point is the
+    lowest one (weights exp(-height above the lowest / softness), so two points level with each other share);
+    the root moves by the opposite of that point's root-relative horizontal motion, at most ``max_step``.
+    """
+    height = 0.5 * (previous_feet[..., 1] + feet[..., 1])
+    weight = torch.exp(-(height - height.min(-1, keepdim=True).values) / softness_m)
+    step = (weight[..., None] * (previous_feet - feet)[..., [0, 2]]).sum(1) / weight.sum(1, keepdim=True)
+    length = torch.linalg.vector_norm(step, dim=-1, keepdim=True)
+    return step * (length.clamp(max=max_step) / length.clamp_min(1e-9))
+
+
+@torch.no_grad()
+def generate(model: EmotiveGaitNet, seeds: Seeds, paths: torch.Tensor, emotions: torch.Tensor,
+             offsets: torch.Tensor, parents: Sequence[int], cfg: PlacementConfig = PlacementConfig()) -> Generated:
+    """Generate S = emotions.shape[1] frames for each of the N seeds in one batch.
+
+    paths: (N, K, 2) world (x, z) polylines to follow (see ``place_paths``); emotions: (N, S, 4) per generated
+    frame (rows summing to 1; NaN rows for "unlabelled"). Returns the generated frames only (not the prefix).
+    """
+    model.eval()
+    seed = seeds.gaits
+    offsets = offsets.to(torch.float32)
+    steps = emotions.shape[1]
+    condition = condition_vectors(emotions.to(torch.float32))
+    prefix = seed.q.shape[1]
+    theta, omega = extrapolated_phase(seed.theta, seed.omega, steps)
+    frames = seed.frames(0, prefix)
+    pred, hidden = model(frames)
+    current = {k: v[:, -1] for k, v in pred.items()}
+    cumulative = path_arcs(paths)
+    ground = seed.root_position[:, -1, [0, 2]].clone()
+    previous_step = ground - seed.root_position[:, -2, [0, 2]]
+    travel = seeds.travel_direction()
+    base_height = seed.root_position[:, :, 1].mean(-1)
+    max_turn = math.radians(cfg.max_turn_deg_per_s) / cfg.fps
+    out = {k: [] for k in ("rotations", "positions", "h", "s", "advance", "delta", "heading", "travel", "versors")}
+    feet = list(FOOT_JOINTS)
+    stance_foot = cfg.root_advance == "stance_foot"
+    previous_feet = _root_relative(qmul(yaw(travel), seed.q[:, -1, 0]), seed.q[:, -1, 1:],
+                                   seed.root_position[:, -1, 1], offsets, parents)[:, feet]
+    drift = torch.zeros_like(travel)  # mean angle between the body's realised steps and the travel direction
+    mean_step = torch.zeros(len(travel), 2)  # (sideways, ahead) in the travel frame, exponentially averaged
+    max_drift = math.radians(cfg.max_drift_deg)
+    for t in range(steps):
+        speed = current["s"].clamp(0.0, cfg.max_speed_m_s / cfg.fps)
+        arc = _closest_arc(ground, paths, cumulative)
+        target = point_at_arc(paths, cumulative, arc + cfg.lookahead_m)
+        wanted = torch.atan2(target[:, 0] - ground[:, 0], target[:, 1] - ground[:, 1])
+        travel = travel + wrap_angle(wanted - drift - travel).clamp(-max_turn, max_turn)
+        along = torch.stack((torch.sin(travel), torch.cos(travel)), dim=-1)
+        delta = current["delta"].clamp(0.0, math.pi)
+        root_rotation = qmul(yaw(travel), current["q"][:, 0])
+        forward = qrot(root_rotation, root_rotation.new_tensor([0.0, 0.0, 1.0]).expand(len(travel), 3))
+        heading = torch.atan2(forward[:, 0], forward[:, 2])
+        rotations = torch.cat([root_rotation[:, None], current["q"][:, 1:]], dim=1)
+        local = _root_relative(root_rotation, current["q"][:, 1:], base_height + current["h"], offsets, parents)
+        nominal = speed[:, None] * along  # the step the predicted root speed asks for
+        if stance_foot:
+            step = stance_step(previous_feet, local[:, feet], cfg.stance_softness_m, cfg.max_speed_m_s / cfg.fps)
+            previous_feet = local[:, feet]
+            relative = torch.stack((along[:, 1] * step[:, 0] - along[:, 0] * step[:, 1], (along * step).sum(-1)), -1)
+            mean_step = mean_step + (relative - mean_step) / (cfg.drift_seconds * cfg.fps)
+            drift = torch.atan2(mean_step[:, 0], mean_step[:, 1].abs().clamp_min(1e-6)).clamp(-max_drift, max_drift)
+        else:
+            step = nominal
+        ground = ground + step
+        positions = local + torch.stack((ground[:, 0], torch.zeros_like(ground[:, 0]), ground[:, 1]), -1)[:, None]
+        kappa = torch.linalg.vector_norm(nominal - previous_step, dim=-1)
+        previous_step = nominal
+        for k, v in (("rotations", rotations), ("positions", positions), ("h", current["h"]), ("s", speed),
+                     ("advance", torch.linalg.vector_norm(step, dim=-1)), ("delta", delta), ("heading", heading),
+                     ("travel", travel), ("versors", current["q"])):
+            out[k].append(v)
+        if t == steps - 1:
+            break
+        inputs = {"q": current["q"][:, None], "affective": predicted_affective(current["q"], offsets, parents)[:, None],
+                  "condition": condition[:, t:t + 1], "theta": theta[:, t:t + 1], "omega": omega[:, t:t + 1],
+                  "s": speed[:, None], "kappa": kappa[:, None], "h": current["h"][:, None], "delta": delta[:, None]}
+        pred, hidden = model(inputs, hidden)
+        current = {k: v[:, 0] for k, v in pred.items()}
+    stacked = {k: torch.stack(v, dim=1) for k, v in out.items()}
+    return Generated(theta=theta, condition=condition, **stacked)

@@ -1,0 +1,279 @@
+"""Training the generator: gait tensors, the autoregressive rollout, curriculum teacher forcing, checkpoints.
+
+A window of T = 60 frames is split into a prefix of 18 frames (given) and 42 frames the network predicts one at
+a time, each prediction fed back as the next input (paper §4, §5.3). With probability β^E (epoch E) a gait's
+input at a step is the ground-truth frame instead of the network's own prediction (curriculum teacher
+forcing, drawn per gait and step from a seeded generator). The stepping phase of predicted frames is
+extrapolated from the prefix at its mean rate, exactly as generation does, so training and generation see the
+same controls; the path curvature κ comes from the ground-truth path (the trajectory is given).
+
+Everything is seeded and runs with deterministic algorithms: the same data, config and seed give the same
+weights, bit for bit, on the same machine and thread count. Device ``auto`` uses CUDA when present; nothing
+requires it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from pipeline.ops.features import affective_features, path_direction
+from pipeline.io.gait_table import atomic_path
+from pipeline.generators.autoregressive.network import (
+    FOOT_JOINTS,
+    EmotiveGaitNet,
+    GeneratorConfig,
+    LossWeights,
+    condition_vectors,
+    generator_losses,
+    travel_frame_positions,
+)
+from pipeline.ops.quaternion import qmul, yaw
+
+DIRECTION_FRAMES = 31  # ~1 s at 30 fps: about one stride, over which the direction of travel is averaged
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """params.yaml ``train`` (without the model sizes)."""
+
+    epochs: int = 300
+    batch_size: int = 128
+    batches_per_epoch: int = 2  # an "epoch" of the curriculum: this many batches (0: one pass over the data)
+    learning_rate: float = 1e-3
+    lr_decay: float = 0.999  # per epoch
+    teacher_forcing_decay: float = 0.995  # β: teacher forcing with probability β^E
+    prefix: int = 18
+    grad_clip: float = 1.0
+    validate_every: int = 10  # epochs between free-running validation rollouts
+    seed: int = 7
+    threads: int = 2
+    device: str = "auto"
+
+
+@dataclass
+class GaitTensors:
+    """What the generator trains on, per gait (N, T, ...), float32."""
+
+    q: torch.Tensor  # (N, T, 21, 4): the pelvis relative to the direction of travel, then the 20 local versors
+    direction: torch.Tensor  # (N, T) direction of travel, rad about +Y (features.path_direction)
+    root_rotation: torch.Tensor  # (N, T, 4)
+    root_position: torch.Tensor  # (N, T, 3)
+    feet: torch.Tensor  # (N, T, 4, 3) world heel/toe positions (generator.FOOT_JOINTS)
+    affective: torch.Tensor  # (N, T, 18)
+    theta: torch.Tensor  # (N, T)
+    omega: torch.Tensor  # (N, T)
+    s: torch.Tensor  # (N, T) m/frame
+    kappa: torch.Tensor  # (N, T)
+    h: torch.Tensor  # (N, T)
+    delta: torch.Tensor  # (N, T)
+    condition: torch.Tensor  # (N, 5)
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray], rows: np.ndarray | slice = slice(None),
+                    direction_frames: int = DIRECTION_FRAMES) -> GaitTensors:
+        """From ``read_gaits`` arrays of the annotated table (movement order h, s, s̄, δ, κ)."""
+        def t(name: str) -> torch.Tensor:
+            return torch.from_numpy(np.ascontiguousarray(arrays[name][rows], dtype=np.float32))
+
+        rot, mov, root = t("rotations"), t("movement"), t("positions")[:, :, 0]
+        direction = path_direction(root, t("heading"), direction_frames)
+        pelvis = qmul(yaw(-direction), rot[:, :, 0])
+        return cls(q=torch.cat([pelvis[:, :, None], rot[:, :, 1:]], dim=2), direction=direction,
+                   root_rotation=rot[:, :, 0], root_position=root, feet=t("positions")[:, :, list(FOOT_JOINTS)],
+                   affective=t("affective"), theta=t("phase"), omega=t("phase_rate"), s=mov[..., 1],
+                   kappa=mov[..., 4], h=mov[..., 0], delta=mov[..., 3], condition=condition_vectors(t("emotion")))
+
+    def __len__(self) -> int:
+        return int(self.q.shape[0])
+
+    def select(self, idx: torch.Tensor | slice) -> GaitTensors:
+        return GaitTensors(**{k: v[idx] for k, v in self.__dict__.items()})
+
+    def to(self, device: torch.device) -> GaitTensors:
+        return GaitTensors(**{k: v.to(device) for k, v in self.__dict__.items()})
+
+    def scalars(self) -> torch.Tensor:
+        """(N, T, 5) in generator.SCALARS order: ω, s, κ, h, δ."""
+        return torch.stack((self.omega, self.s, self.kappa, self.h, self.delta), dim=-1)
+
+    def frames(self, start: int, stop: int) -> dict[str, torch.Tensor]:
+        """Network inputs of frames [start, stop) as (B, L, ...)."""
+        length = stop - start
+        return {"q": self.q[:, start:stop], "affective": self.affective[:, start:stop],
+                "condition": self.condition[:, None].expand(-1, length, -1),
+                "theta": self.theta[:, start:stop], "omega": self.omega[:, start:stop], "s": self.s[:, start:stop],
+                "kappa": self.kappa[:, start:stop], "h": self.h[:, start:stop], "delta": self.delta[:, start:stop]}
+
+
+def extrapolated_phase(theta: torch.Tensor, omega: torch.Tensor, steps: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """Phase of ``steps`` frames after a prefix (B, P): continue from the last θ at the prefix's mean ω.
+
+    Returns θ (B, steps) wrapped to [0, 2π) and ω (B, steps). The generator has no cadence head (paper §4.2), so
+    the stepping rhythm of a generated gait is its seed's.
+    """
+    rate = omega[:, 1:].mean(-1, keepdim=True) if omega.shape[1] > 1 else omega[:, :1]
+    k = torch.arange(1, steps + 1, dtype=theta.dtype, device=theta.device)
+    return torch.remainder(theta[:, -1:] + rate * k, 2 * math.pi), rate.expand(-1, steps)
+
+
+def predicted_affective(q: torch.Tensor, offsets: torch.Tensor, parents: Sequence[int]) -> torch.Tensor:
+    """Affective features (..., 18) of predicted versors (..., 21, 4): the features are rotation free, so the
+    travel-frame pose gives the same numbers as the world pose."""
+    return affective_features(travel_frame_positions(q, offsets, parents))
+
+
+def rollout(model: EmotiveGaitNet, gaits: GaitTensors, offsets: torch.Tensor, parents: Sequence[int], prefix: int,
+            teacher_forcing: float = 0.0, generator: torch.Generator | None = None) -> dict[str, torch.Tensor]:
+    """Predict frames prefix..T-1 autoregressively. Returns q, q_raw (B, T-prefix, 21, 4), h, s, delta (B, T-prefix).
+
+    teacher_forcing: probability that a gait's input at a step is the ground-truth frame (drawn per gait and step).
+    """
+    frames = gaits.q.shape[1]
+    steps = frames - prefix
+    theta, omega = extrapolated_phase(gaits.theta[:, :prefix], gaits.omega[:, :prefix], steps)
+    pred, hidden = model(gaits.frames(0, prefix))
+    current = {k: v[:, -1:] for k, v in pred.items()}
+    outputs = [current]
+    for step in range(steps - 1):
+        t = prefix + step  # the frame now fed in
+        truth = gaits.frames(t, t + 1)
+        fed = {
+            "q": current["q"], "h": current["h"], "s": current["s"], "delta": current["delta"],
+            "affective": predicted_affective(current["q"], offsets, parents),
+        }
+        if teacher_forcing > 0.0:
+            coin = torch.rand(gaits.q.shape[0], generator=generator).to(gaits.q.device) < teacher_forcing
+            for k, v in fed.items():
+                mask = coin.view(-1, *([1] * (v.dim() - 1)))
+                fed[k] = torch.where(mask, truth[k], v)
+        inputs = {**truth, **fed, "theta": theta[:, step:step + 1], "omega": omega[:, step:step + 1]}
+        current, hidden = model(inputs, hidden)
+        outputs.append(current)
+    return {k: torch.cat([o[k] for o in outputs], dim=1) for k in outputs[0]}
+
+
+def targets(gaits: GaitTensors, prefix: int) -> dict[str, torch.Tensor]:
+    """What the losses compare the predicted frames with (generator.generator_losses)."""
+    return {"q": gaits.q[:, prefix:], "affective": gaits.affective[:, prefix:], "h": gaits.h[:, prefix:],
+            "s": gaits.s[:, prefix:], "delta": gaits.delta[:, prefix:], "feet": gaits.feet[:, prefix:],
+            "direction": gaits.direction[:, prefix:], "start": gaits.root_position[:, prefix - 1],
+            "base_height": gaits.root_position[..., 1].mean(-1)}
+
+
+def resolve_device(name: str) -> torch.device:
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    return torch.device(name)
+
+
+@dataclass
+class TrainResult:
+    model: EmotiveGaitNet
+    history: list[dict[str, Any]]  # per epoch: train and validation losses, teacher forcing, learning rate
+
+
+def train_generator(train: GaitTensors, val: GaitTensors, offsets: torch.Tensor, parents: Sequence[int],
+                    model_cfg: GeneratorConfig, cfg: TrainConfig, weights: LossWeights,
+                    progress: Callable[[dict[str, Any]], None] | None = None) -> TrainResult:
+    """Seeded, deterministic training; validation is a free-running rollout (no teacher forcing) every epoch."""
+    torch.set_num_threads(cfg.threads)
+    torch.use_deterministic_algorithms(True)
+    torch.manual_seed(cfg.seed)
+    device = resolve_device(cfg.device)
+    draws = torch.Generator().manual_seed(cfg.seed)
+    model = EmotiveGaitNet(model_cfg)
+    model.set_statistics(train.affective, train.scalars())
+    model.to(device)
+    offsets = offsets.to(device=device, dtype=torch.float32)
+    train_d, val_d = train.to(device), val.to(device)
+    optimiser = torch.optim.Adam(model.parameters(), lr=cfg.learning_rate)
+    schedule = torch.optim.lr_scheduler.ExponentialLR(optimiser, gamma=cfg.lr_decay)
+    history = []
+    per_epoch = cfg.batches_per_epoch or math.ceil(len(train_d) / cfg.batch_size)
+    order, cursor = torch.randperm(len(train_d), generator=draws), 0
+    for epoch in range(cfg.epochs):
+        model.train()
+        tf = cfg.teacher_forcing_decay ** epoch
+        sums: dict[str, float] = {}
+        batches = 0
+        for _ in range(per_epoch):
+            if cursor + cfg.batch_size > len(order):  # a new pass: a fresh permutation
+                order, cursor = torch.randperm(len(train_d), generator=draws), 0
+            batch = train_d.select(order[cursor:cursor + cfg.batch_size].to(device))
+            cursor += cfg.batch_size
+            pred = rollout(model, batch, offsets, parents, cfg.prefix, tf, draws)
+            losses = generator_losses(pred, targets(batch, cfg.prefix), model, offsets, parents, weights)
+            optimiser.zero_grad(set_to_none=True)
+            losses.total.backward()
+            torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.grad_clip)
+            optimiser.step()
+            for k, v in losses.as_floats().items():
+                sums[k] = sums.get(k, 0.0) + v
+            batches += 1
+        lr = optimiser.param_groups[0]["lr"]
+        schedule.step()
+        val_losses = (evaluate_losses(model, val_d, offsets, parents, cfg.prefix, weights)
+                      if (epoch + 1) % cfg.validate_every == 0 or epoch + 1 == cfg.epochs else {})
+        row = {"epoch": epoch + 1, "teacher_forcing": round(tf, 6), "learning_rate": lr,
+               **{f"train_{k}": v / max(batches, 1) for k, v in sums.items()},
+               **{f"val_{k}": v for k, v in val_losses.items()}}
+        history.append(row)
+        if progress:
+            progress(row)
+    model.cpu()
+    return TrainResult(model=model, history=history)
+
+
+@torch.no_grad()
+def evaluate_losses(model: EmotiveGaitNet, gaits: GaitTensors, offsets: torch.Tensor, parents: Sequence[int],
+                    prefix: int, weights: LossWeights, batch_size: int = 256) -> dict[str, float]:
+    """Loss terms of a free-running rollout, averaged over gaits."""
+    model.eval()
+    totals: dict[str, float] = {}
+    for start in range(0, len(gaits), batch_size):
+        batch = gaits.select(slice(start, start + batch_size))
+        pred = rollout(model, batch, offsets, parents, prefix)
+        for k, v in generator_losses(pred, targets(batch, prefix), model, offsets, parents, weights).as_floats().items():
+            totals[k] = totals.get(k, 0.0) + v * len(batch)
+    return {k: v / max(len(gaits), 1) for k, v in totals.items()}
+
+
+# --- checkpoints ---------------------------------------------------------------------------------------------
+
+def checkpoint_bytes(model: EmotiveGaitNet, extra: dict[str, Any]) -> bytes:
+    """The checkpoint as bytes: deterministic for the same weights (no times, paths or random names)."""
+    buffer = io.BytesIO()
+    state = {k: v.detach().cpu().contiguous() for k, v in model.state_dict().items()}
+    torch.save({"format": "emogait-generator/1", "config": model.cfg.to_dict(), "state_dict": state, **extra}, buffer)
+    return buffer.getvalue()
+
+
+def write_checkpoint(data: bytes, path: str | Path) -> str:
+    """Write checkpoint bytes atomically; return their sha256."""
+    with atomic_path(Path(path)) as tmp:
+        tmp.write_bytes(data)
+    return hashlib.sha256(data).hexdigest()
+
+
+def load_checkpoint(path: str | Path) -> tuple[EmotiveGaitNet, dict[str, Any], str]:
+    """(model in eval mode, the checkpoint's extra fields, sha256 of the file)."""
+    data = Path(path).read_bytes()
+    blob = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
+    model = EmotiveGaitNet(GeneratorConfig.from_dict(blob["config"]))
+    model.load_state_dict(blob["state_dict"])
+    model.eval()
+    extra = {k: v for k, v in blob.items() if k not in ("config", "state_dict")}
+    return model, extra, hashlib.sha256(data).hexdigest()
+
+
+def config_dicts(model_cfg: GeneratorConfig, cfg: TrainConfig, weights: LossWeights) -> dict[str, Any]:
+    return {"model": model_cfg.to_dict(), "train": asdict(cfg), "loss": asdict(weights)}

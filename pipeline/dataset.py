@@ -22,7 +22,6 @@ This module knows the directory's files, not how gaits are made.
 
 from __future__ import annotations
 
-import hashlib
 import json
 from collections.abc import Sequence
 from pathlib import Path
@@ -37,7 +36,8 @@ import pyarrow.parquet as pq
 import torch
 from torch.utils.data import Dataset
 
-from pipeline.io.gait_table import EMOTIONS, atomic_path, column_array
+from pipeline.io.files import META_KEY, atomic_path, read_meta, schema_meta, sha256_file, write_text
+from pipeline.io.gait_table import EMOTIONS, column_array
 
 ID_COLUMN = "gait_id"
 REQUIRED_COLUMNS = (ID_COLUMN, "kind", "positions", "rotations")  # present, and never null
@@ -73,7 +73,7 @@ def directory_schema(directory: str | Path) -> pa.Schema:
 
 def directory_metadata(directory: str | Path) -> dict[str, Any]:
     """The ``emogait`` schema metadata of a published directory."""
-    return json.loads(directory_schema(directory).metadata[b"emogait"])
+    return schema_meta(directory_schema(directory))
 
 
 def read_table(directory: str | Path, columns: Sequence[str] | None = None) -> tuple[pa.Table, dict[str, Any]]:
@@ -144,7 +144,7 @@ class GaitDataset(Dataset):
     """
 
     def __init__(self, directory: str | Path, columns: Sequence[str] | None = None):
-        meta = json.loads(pq.read_schema(parquet_files(directory)[0]).metadata[b"emogait"])
+        meta = read_meta(parquet_files(directory)[0])
         wanted = list(columns) if columns else [ID_COLUMN, *meta["shapes"]]
         table, meta = read_table(directory, wanted)
         self.meta = meta
@@ -239,11 +239,6 @@ def write_hdf5_atomic(table: pa.Table, arrays: dict[str, np.ndarray], path: str 
         _write_root_attrs(h5, meta)
 
 
-def file_sha256(path: Path) -> str:
-    with path.open("rb") as fh:
-        return hashlib.file_digest(fh, "sha256").hexdigest()
-
-
 def listed_files(directory: Path) -> list[str]:
     """Relative paths of the files SHA256SUMS covers: every non-hidden file but itself, sorted."""
     rels = (p.relative_to(directory).as_posix() for p in directory.rglob("*") if p.is_file())
@@ -253,10 +248,9 @@ def listed_files(directory: Path) -> list[str]:
 def write_sha256sums(directory: str | Path) -> Path:
     """Write SHA256SUMS for the directory's files (run last, after every other file is in place)."""
     directory = Path(directory)
-    lines = [f"{file_sha256(directory / rel)}  {rel}\n" for rel in listed_files(directory)]
+    lines = [f"{sha256_file(directory / rel)}  {rel}\n" for rel in listed_files(directory)]
     path = directory / SUMS_NAME
-    with atomic_path(path) as tmp:
-        tmp.write_text("".join(lines), encoding="utf-8")
+    write_text("".join(lines), path)
     return path
 
 
@@ -303,7 +297,7 @@ def _check_sums(directory: Path) -> list[str]:
         file = directory / rel
         if not file.is_file():
             problems.append(f"{rel}: listed in {SUMS_NAME} but missing")
-        elif (found := file_sha256(file)) != digest:
+        elif (found := sha256_file(file)) != digest:
             problems.append(f"{rel}: sha256 mismatch: expected {digest} ({SUMS_NAME}), found {found}")
     unlisted = [rel for rel in listed_files(directory) if rel not in listed]
     return problems + [f"{rel}: present but not listed in {SUMS_NAME}" for rel in unlisted]
@@ -314,10 +308,10 @@ def _read_checked(directory: Path) -> tuple[pa.Table | None, dict[str, Any], lis
     problems, metas = [], []
     for file in parquet_files(directory):
         raw = pq.read_schema(file).metadata or {}
-        if b"emogait" not in raw:
+        if META_KEY not in raw:
             problems.append(f"{file.name}: schema metadata key 'emogait' missing")
             continue
-        meta = json.loads(raw[b"emogait"])
+        meta = json.loads(raw[META_KEY])
         missing = [k for k in REQUIRED_META if k not in meta]
         if missing:
             problems.append(f"{file.name}: schema metadata 'emogait' lacks {missing}")

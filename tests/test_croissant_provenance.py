@@ -25,9 +25,11 @@ import yaml
 
 from pipeline.publish.croissant import (CROISSANT_NAME, croissant_metadata, croissant_problems, write_croissant)
 from pipeline.dataset import read_table, verify, write_hdf5_atomic, write_sha256sums
-from pipeline.io.gait_table import array_column, column_array, write_parquet_atomic
+from pipeline.io.files import write_parquet
+from pipeline.io.gait_table import array_column, column_array
 from pipeline.publish.provenance import PROVENANCE_NAME, prov_document, write_provenance
 from stages.common import REPO
+from stages.lineage import stage_graph
 
 LOCK = REPO / "dvc.lock"
 MLCROISSANT = Path(sys.executable).parent / "mlcroissant"
@@ -106,11 +108,11 @@ def _describe(table: pa.Table) -> dict:
 def _publish(directory: Path, table: pa.Table, meta: dict, shards: int = 1) -> dict:
     directory.mkdir(parents=True, exist_ok=True)
     if shards == 1:
-        write_parquet_atomic(table, directory / "gaits.parquet")
+        write_parquet(table, directory / "gaits.parquet")
     else:
         bounds = np.linspace(0, table.num_rows, shards + 1).astype(int)
         for k, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
-            write_parquet_atomic(table.slice(a, b - a), directory / f"gaits-{k:05d}.parquet")
+            write_parquet(table.slice(a, b - a), directory / f"gaits-{k:05d}.parquet")
     write_hdf5_atomic(table, {}, directory / "gaits.h5", meta)
     (directory / "README.md").write_text("# emogait test sample\n", encoding="utf-8")
     (directory / "previews").mkdir(exist_ok=True)
@@ -129,7 +131,7 @@ def sample(annotated) -> tuple[pa.Table, dict]:
 def published(sample, tmp_path_factory) -> tuple[Path, dict]:
     directory = tmp_path_factory.mktemp("published") / "synthesized_emotive_gaits"
     doc = _publish(directory, *sample)
-    write_provenance(directory / PROVENANCE_NAME, prov_document(LOCK, REPO, directory))
+    write_provenance(directory / PROVENANCE_NAME, prov_document(stage_graph(REPO, LOCK), REPO, directory))
     write_sha256sums(directory)
     return directory, doc
 
@@ -297,7 +299,7 @@ def _edges(doc: dict, kind: str, a: str, b: str) -> set[tuple[str, str]]:
 
 def test_every_stage_is_an_activity_and_every_path_an_entity_with_its_edges(published):
     directory, _ = published
-    doc = prov_document(LOCK, REPO, directory)
+    doc = prov_document(stage_graph(REPO, LOCK), REPO, directory)
     lock = _lock()
     assert set(lock["stages"]) >= {"ingest", "annotate", "validate_contacts", "split", "train", "evaluate"}
     assert set(doc["activity"]) == {f"stage:{name}" for name in lock["stages"]}
@@ -331,9 +333,9 @@ def test_every_stage_is_an_activity_and_every_path_an_entity_with_its_edges(publ
 
 def test_prov_json_is_well_formed_serialisable_and_deterministic(published):
     directory, _ = published
-    doc = prov_document(LOCK, REPO, directory)
+    doc = prov_document(stage_graph(REPO, LOCK), REPO, directory)
     text = json.dumps(doc, indent=2)
-    assert json.dumps(prov_document(LOCK, REPO, directory), indent=2) == text
+    assert json.dumps(prov_document(stage_graph(REPO, LOCK), REPO, directory), indent=2) == text
     allowed = {"prefix", "entity", "activity", "agent", "used", "wasGeneratedBy", "wasAssociatedWith",
                "wasDerivedFrom", "hadMember"}
     assert set(doc) <= allowed and set(doc["prefix"]) >= {"emogait", "dvc", "stage", "path"}
@@ -364,7 +366,7 @@ def test_a_publish_stage_generates_the_published_files_from_its_inputs(published
     directory, _ = published
     out = Path(os.path.relpath(directory, REPO)).as_posix()
     outs = [{"path": out, "hash": "md5", "md5": "2" * 32 + ".dir", "size": 3, "nfiles": 9}]
-    doc = prov_document(_with_publish_stage(tmp_path, outs), REPO, directory)
+    doc = prov_document(stage_graph(REPO, _with_publish_stage(tmp_path, outs)), REPO, directory)
     lock = _lock()
     files = {v["prov:label"]: k for k, v in doc["entity"].items() if "emogait:sha256" in v}
     sums = dict(line.split("  ")[::-1] for line in (directory / "SHA256SUMS").read_text().splitlines())
@@ -387,7 +389,7 @@ def test_a_published_file_the_lock_names_keeps_its_dvc_record(published, tmp_pat
     directory, _ = published
     parquet = Path(os.path.relpath(directory / "gaits.parquet", REPO)).as_posix()
     outs = [{"path": parquet, "hash": "md5", "md5": "3" * 32, "size": 4}]
-    doc = prov_document(_with_publish_stage(tmp_path, outs), REPO, directory)
+    doc = prov_document(stage_graph(REPO, _with_publish_stage(tmp_path, outs)), REPO, directory)
     entity = doc["entity"][f"path:{parquet}"]
     assert (entity["dvc:md5"], entity["emogait:sha256"]) == ("3" * 32, _sha256_of(directory / "gaits.parquet"))
     generated = [r for r in doc["wasGeneratedBy"].values() if r["prov:entity"] == f"path:{parquet}"]
@@ -400,11 +402,11 @@ def test_the_running_publish_stage_records_its_lineage_whatever_ran_after_it(pub
     """Run inside `publish`, the document holds the stages publish depends on (transitively) and publish itself
     from dvc.yaml, so a lock that also holds later stages (audit) or an older publish entry gives the same bytes."""
     directory, _ = published
-    doc = prov_document(LOCK, REPO, directory, running="publish")
+    doc = prov_document(stage_graph(REPO, LOCK, running="publish"), REPO, directory)
     assert set(doc["activity"]) == {f"stage:{s}" for s in ("ingest", "annotate", "split", "train", "synthesize",
                                                            "publish")}
     lock = _lock()
     earlier = {**lock, "stages": {k: v for k, v in lock["stages"].items() if k not in ("publish", "audit")}}
     path = tmp_path / "dvc.lock"
     path.write_text(yaml.safe_dump(earlier, sort_keys=False))
-    assert json.dumps(prov_document(path, REPO, directory, running="publish")) == json.dumps(doc)
+    assert json.dumps(prov_document(stage_graph(REPO, path, running="publish"), REPO, directory)) == json.dumps(doc)

@@ -22,7 +22,8 @@ from pipeline.dataset import (
     write_hdf5_atomic,
     write_sha256sums,
 )
-from pipeline.io.gait_table import array_column, column_array, write_parquet_atomic
+from pipeline.io.files import write_parquet
+from pipeline.io.gait_table import array_column, column_array
 
 
 def _pick_rows(table: pa.Table, per_source: int = 3) -> list[int]:
@@ -45,12 +46,12 @@ def _publish(directory, table: pa.Table, meta: dict, shards: int = 1):
     """What the publish stage will do for the gait files: Parquet (maybe sharded), HDF5, then SHA256SUMS."""
     table = _with_meta(table, meta)
     if shards == 1:
-        write_parquet_atomic(table, directory / "gaits.parquet")
+        write_parquet(table, directory / "gaits.parquet")
     else:
         bounds = np.linspace(0, table.num_rows, shards + 1).astype(int)
         for k in range(shards):
             shard = table.slice(bounds[k], bounds[k + 1] - bounds[k])
-            write_parquet_atomic(shard, directory / f"gaits-{k:05d}.parquet")
+            write_parquet(shard, directory / f"gaits-{k:05d}.parquet")
     write_hdf5_atomic(table, {}, directory / "gaits.h5", meta)
     write_sha256sums(directory)
     return directory
@@ -222,7 +223,7 @@ def test_verify_names_hdf5_that_disagrees_with_parquet(real, tmp_path):
 def test_verify_names_missing_metadata_and_unlisted_files(real, tmp_path):
     table, meta = real
     directory = _publish(tmp_path, table, meta)
-    write_parquet_atomic(table.replace_schema_metadata(None), directory / "gaits.parquet")
+    write_parquet(table.replace_schema_metadata(None), directory / "gaits.parquet")
     (directory / "notes.txt").write_text("not in SHA256SUMS\n")
     problems = verify(directory)
     assert any("schema metadata key 'emogait' missing" in p for p in problems), problems

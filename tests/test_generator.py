@@ -10,6 +10,7 @@ import pytest
 import torch
 
 from pipeline.evaluation.autoregressive import constant_velocity, pose_errors, straight_path, turn_path, zero_velocity
+from pipeline.io.files import write_bytes
 from pipeline.generators.autoregressive.rollout import PlacementConfig, Seeds, generate, lateral_deviation, place_paths, stance_step
 from pipeline.generators.autoregressive.network import FOOT_JOINTS, EmotiveGaitNet, GeneratorConfig, LossWeights, generator_losses
 from pipeline.ops.quaternion import euler_to_quat, qangle, qnormalize, quat_to_euler
@@ -21,7 +22,6 @@ from pipeline.generators.autoregressive.training import (
     rollout,
     targets,
     train_generator,
-    write_checkpoint,
 )
 
 TINY = GeneratorConfig(affect_layers=(8, 8, 4), movement_layers=(8, 8, 4), gru_hidden=16, versor_hidden=16,
@@ -100,7 +100,7 @@ def test_training_is_reproducible_and_checkpoints_are_byte_identical(gaits, offs
     other = train_generator(train, val, offsets, skeleton.parents, TINY, TrainConfig(**{**cfg.__dict__, "seed": 4}),
                             LossWeights())
     assert checkpoint_bytes(other.model, {"epochs": 3}) != a  # the seed matters
-    sha = write_checkpoint(a, tmp_path / "m.pt")
+    sha = write_bytes(a, tmp_path / "m.pt")
     model, extra, sha2 = load_checkpoint(tmp_path / "m.pt")
     assert sha == sha2 and extra["epochs"] == 3
     assert all(torch.equal(p, q) for p, q in zip(model.state_dict().values(), runs[0].model.state_dict().values()))

@@ -4,7 +4,8 @@ import os
 
 from distributed import LocalCluster
 
-from pipeline.io.gait_table import to_table, write_parquet_atomic
+from pipeline.io.files import write_parquet
+from pipeline.io.gait_table import to_table
 from pipeline.ingest.run import run_ingest
 
 
@@ -14,13 +15,13 @@ def test_local_scheduler_and_distributed_cluster_give_identical_parquet(tmp_path
         windows, report = run_ingest(list(manifests.values()), skeleton, ingest_config,
                                      scheduler_address=cluster.scheduler_address, progress=False)
     out = tmp_path / "distributed.parquet"
-    write_parquet_atomic(to_table(windows, skeleton, ingest_config.window), out)
+    write_parquet(to_table(windows, skeleton, ingest_config.window), out)
     assert report == full_ingest["report"]
     assert out.read_bytes() == full_ingest["path"].read_bytes()
 
 
 def test_rewriting_gives_the_same_bytes(tmp_path, full_ingest, skeleton, ingest_config):
     again = tmp_path / "again.parquet"
-    write_parquet_atomic(to_table(full_ingest["windows"], skeleton, ingest_config.window), again)
+    write_parquet(to_table(full_ingest["windows"], skeleton, ingest_config.window), again)
     assert again.read_bytes() == full_ingest["path"].read_bytes()
-    assert not [p for p in os.listdir(tmp_path) if p.endswith(".tmp")], "temporary files left behind"
+    assert not [p for p in os.listdir(tmp_path) if ".tmp" in p], "temporary files left behind"

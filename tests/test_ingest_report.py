@@ -5,8 +5,10 @@ import json
 
 import numpy as np
 import pyarrow.parquet as pq
+import pytest
 
-from pipeline.io.gait_table import EMOTIONS, read_metadata
+from pipeline.io.files import read_meta
+from pipeline.io.gait_table import EMOTIONS
 from tests.conftest import MOCAP
 
 SOURCES = {"bandai_namco_motiondataset", "cmu_bvh11", "cmu_iclone", "pymo_demo", "bvh_python_tests"}
@@ -30,12 +32,14 @@ def test_all_five_bvh_sources_ingest(full_ingest):
     assert all(per[s]["files_ingested"] >= 1 and per[s]["gaits"] >= 1 for s in SOURCES), per
 
 
+@pytest.mark.usefixtures("mocap")
 def test_manifests_pin_the_documented_files():
     rows = {r["local"]: r["sha256"] for r in csv.DictReader(open(MOCAP / "manifest.csv")) if r["kind"] == "bvh"}
     from stages.common import SOURCES as FOLDER
     from pipeline.io.manifests import load_manifests
 
-    pinned = {f"{m.name}/{f.path}": f.sha256 for m in load_manifests(FOLDER) for f in m.files}
+    pinned = {f"{m.name}/{f.path}": f.sha256 for m in load_manifests(FOLDER, formats=("bvh",))
+              for f in m.files}
     assert pinned == rows
 
 
@@ -70,7 +74,7 @@ def test_labels_always_say_how_they_were_made(full_ingest):
 
 
 def test_schema_metadata_describes_the_arrays(full_ingest, skeleton):
-    meta = read_metadata(full_ingest["path"])
+    meta = read_meta(full_ingest["path"])
     assert meta["shapes"]["positions"] == [60, 21, 3] and meta["shapes"]["rotations"] == [60, 21, 4]
     assert meta["joint_names"] == list(skeleton.names) and meta["emotion_order"] == list(EMOTIONS)
     schema = pq.read_schema(full_ingest["path"])

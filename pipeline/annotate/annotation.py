@@ -14,10 +14,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import pyarrow as pa
 import torch
 
 from pipeline.ops.contacts import CONTACT_POINTS, ContactConfig, foot_contacts, foot_events, phase_rate, stepping_phase
 from pipeline.ops.features import AFFECTIVE_NAMES, MOVEMENT_NAMES, movement_features, pose_affective_features
+from pipeline.core.schema import ANNOTATIONS, units
 from pipeline.core.skeleton import Skeleton
 
 
@@ -105,7 +107,22 @@ ANNOTATION_META = {
     "contact_points": list(CONTACT_POINTS),
     "affective_names": list(AFFECTIVE_NAMES),
     "movement_names": list(MOVEMENT_NAMES),
-    "units": {"contacts": "0/1", "phase": "rad [0, 2π), 0 at left strike, π at right strike",
-              "phase_rate": "rad per frame", "affective": "rad or ratio (scale-free)",
-              "movement": "m, m/frame, m/frame, rad, m/frame"},
+    "units": units(ANNOTATIONS),
 }
+
+
+def annotation_report(table: pa.Table, clips: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """Counts, clips without a stepping phase, stance fractions (all clips, walks) and the per-clip figures."""
+    stance = np.array([c["stance_fraction"] for c in clips.values()])
+    contents = dict(zip(table.column("clip_id").to_pylist(), table.column("content").to_pylist()))
+    walk_stance = np.array([c["stance_fraction"] for cid, c in clips.items() if contents[cid] == "walk"])
+    return {
+        "gaits": table.num_rows,
+        "clips": len(clips),
+        "clips_without_phase": sorted(cid for cid, c in clips.items() if not c["phase_defined"]),
+        "stance_fraction": {"all_median": float(np.median(stance)),
+                            "walk_median": float(np.median(walk_stance)) if walk_stance.size else None,
+                            "walk_p05": float(np.percentile(walk_stance, 5)) if walk_stance.size else None,
+                            "walk_p95": float(np.percentile(walk_stance, 95)) if walk_stance.size else None},
+        "per_clip": clips,
+    }

@@ -21,6 +21,7 @@ import numpy as np
 import pandas as pd
 import torch
 
+from pipeline.io.files import schema_meta
 from pipeline.dataset import directory_schema, load_dataframe, verify
 from pipeline.split import dominant_emotion
 
@@ -36,7 +37,7 @@ def load_for_audit(directory) -> tuple[pd.DataFrame, dict[str, Any]]:
     """The audited columns that the directory has, one row per gait, plus a ``dominant`` column."""
     schema = directory_schema(directory)
     frame = load_dataframe(directory, [c for c in COLUMNS if c in schema.names])
-    meta = json.loads(schema.metadata[b"emogait"])
+    meta = schema_meta(schema)
     frame["dominant"] = [dominant_emotion(e, meta["emotion_order"]) for e in frame["emotion"]]
     return frame, meta
 

@@ -18,16 +18,14 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from pipeline.audit.metrics import UNLABELLED, normalised_entropy  # noqa: E402
-from pipeline.io.gait_table import atomic_path  # noqa: E402
+from pipeline.io.files import save_figure, write_text  # noqa: E402
 
 KIND_COLOURS = {"real": "tab:blue", "synthetic": "tab:orange"}
 
 
 def _save(fig, path: Path) -> Path:
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=80, metadata={"Software": None})
-    plt.close(fig)
+    save_figure(fig, path, dpi=80, metadata={"Software": None})
     return path
 
 
@@ -203,6 +201,5 @@ figcaption{{font-size:13px;color:#333}}</style></head><body>
 <h2>Figures</h2>{images}
 </body></html>
 """
-    with atomic_path(path) as tmp:
-        tmp.write_text(page, encoding="utf-8")
+    write_text(page, path)
     return path

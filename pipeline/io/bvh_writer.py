@@ -45,7 +45,7 @@ import numpy as np
 import torch
 
 from pipeline.ops.quaternion import qnormalize, quat_to_euler
-from pipeline.io.gait_table import atomic_path
+from pipeline.io.files import write_bytes
 from pipeline.core.skeleton import Skeleton
 
 CM_PER_M = 100.0
@@ -161,5 +161,4 @@ def write_bvh(path: str | Path, rotations: torch.Tensor | np.ndarray, root_posit
               skeleton: Skeleton, fps: float) -> None:
     """Write ``bvh_text`` atomically (temporary file + rename), so a reader never sees half a file."""
     data = bvh_text(rotations, root_positions, skeleton, fps).encode("ascii")
-    with atomic_path(Path(path)) as tmp:
-        tmp.write_bytes(data)
+    write_bytes(data, path)

@@ -25,8 +25,8 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from pipeline.dataset import HDF5_NAME, ID_COLUMN, SHARD_GLOB, file_sha256, parquet_files
-from pipeline.io.gait_table import atomic_path
+from pipeline.dataset import HDF5_NAME, ID_COLUMN, SHARD_GLOB, parquet_files
+from pipeline.io.files import schema_meta, sha256_file, write_json
 
 CROISSANT_NAME = "croissant.json"
 CONFORMS_TO = "http://mlcommons.org/croissant/1.1"
@@ -151,7 +151,7 @@ def _distribution(directory: Path, files: list[Path]) -> tuple[list[dict[str, An
     def file_object(path: Path, encoding: str) -> dict[str, Any]:
         rel = path.relative_to(directory).as_posix()
         return {"@type": "cr:FileObject", "@id": rel, "name": rel, "contentUrl": rel,
-                "contentSize": f"{path.stat().st_size} B", "encodingFormat": encoding, "sha256": file_sha256(path)}
+                "contentSize": f"{path.stat().st_size} B", "encodingFormat": encoding, "sha256": sha256_file(path)}
 
     objects = [file_object(f, PARQUET_FORMAT) for f in files]
     if len(files) == 1 and not files[0].match(SHARD_GLOB):
@@ -180,7 +180,7 @@ def croissant_metadata(directory: Path, *, name: str, description: str, version:
     directory = Path(directory)
     files = parquet_files(directory)
     schema = pq.read_schema(files[0])
-    meta = json.loads(schema.metadata[b"emogait"])
+    meta = schema_meta(schema)
     undocumented = [c for c in schema.names if c not in column_descriptions]
     unknown = sorted(set(column_descriptions) - set(schema.names))
     if undocumented or unknown:
@@ -217,8 +217,7 @@ def write_croissant(directory: Path, doc: Mapping[str, Any]) -> Path:
     """Write ``croissant.json`` into the directory: UTF-8, indent 2, newline at the end, atomically.
     Keys keep the document's order, so the same document gives the same bytes."""
     path = Path(directory) / CROISSANT_NAME
-    with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(doc, indent=2, ensure_ascii=False, allow_nan=False) + "\n", encoding="utf-8")
+    write_json(doc, path, sort_keys=False, ascii_only=False)
     return path
 
 
@@ -240,7 +239,7 @@ def croissant_problems(directory: Path, doc: Mapping[str, Any]) -> list[str]:
         path = directory / item["contentUrl"]
         if not path.is_file():
             problems.append(f"{CROISSANT_NAME}: FileObject {item['@id']!r}: {item['contentUrl']} is missing")
-        elif (found := file_sha256(path)) != item.get("sha256"):
+        elif (found := sha256_file(path)) != item.get("sha256"):
             problems.append(f"{CROISSANT_NAME}: FileObject {item['@id']!r}: sha256 {item.get('sha256')}, "
                             f"the file's is {found}")
     schema = pq.read_schema(files[0])

@@ -14,7 +14,6 @@ requires it.
 
 from __future__ import annotations
 
-import hashlib
 import io
 import math
 from collections.abc import Callable, Sequence
@@ -26,7 +25,7 @@ import numpy as np
 import torch
 
 from pipeline.ops.features import affective_features, path_direction
-from pipeline.io.gait_table import atomic_path
+from pipeline.io.files import sha256_bytes
 from pipeline.generators.autoregressive.network import (
     FOOT_JOINTS,
     EmotiveGaitNet,
@@ -257,13 +256,6 @@ def checkpoint_bytes(model: EmotiveGaitNet, extra: dict[str, Any]) -> bytes:
     return buffer.getvalue()
 
 
-def write_checkpoint(data: bytes, path: str | Path) -> str:
-    """Write checkpoint bytes atomically; return their sha256."""
-    with atomic_path(Path(path)) as tmp:
-        tmp.write_bytes(data)
-    return hashlib.sha256(data).hexdigest()
-
-
 def load_checkpoint(path: str | Path) -> tuple[EmotiveGaitNet, dict[str, Any], str]:
     """(model in eval mode, the checkpoint's extra fields, sha256 of the file)."""
     data = Path(path).read_bytes()
@@ -272,7 +264,7 @@ def load_checkpoint(path: str | Path) -> tuple[EmotiveGaitNet, dict[str, Any], s
     model.load_state_dict(blob["state_dict"])
     model.eval()
     extra = {k: v for k, v in blob.items() if k not in ("config", "state_dict")}
-    return model, extra, hashlib.sha256(data).hexdigest()
+    return model, extra, sha256_bytes(data)
 
 
 def config_dicts(model_cfg: GeneratorConfig, cfg: TrainConfig, weights: LossWeights) -> dict[str, Any]:

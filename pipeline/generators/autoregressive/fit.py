@@ -1,0 +1,104 @@
+"""Fitting the autoregressive family: the generator and its ablations (``variants``), trained side by side in
+parallel processes on the train split and checked on val, each seeded and deterministic (a rerun gives the same
+checkpoint bytes on the same machine). Takes the split gait table's path and plain configs; returns what the
+stage writes (checkpoint bytes, histories, report rows).
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from pipeline.core.skeleton import Skeleton
+from pipeline.generators.autoregressive.network import GeneratorConfig, LossWeights
+from pipeline.generators.autoregressive.training import (
+    GaitTensors,
+    TrainConfig,
+    checkpoint_bytes,
+    config_dicts,
+    train_generator,
+)
+from pipeline.io.gait_table import read_gaits
+
+Variants = dict[str, tuple[GeneratorConfig, TrainConfig, LossWeights]]
+
+
+def variant_configs(train: dict[str, Any]) -> Variants:
+    """The configs of every variant from a ``train`` mapping: base ``model``/``loss`` with each variant's changes."""
+    p = train
+    base_model = dict(p.get("model") or {})
+    base_loss = {k: float(v) for k, v in (p.get("loss") or {}).items()}
+    train = TrainConfig(**{k: v for k, v in p.items() if k in TrainConfig.__dataclass_fields__})
+    out = {}
+    for name, change in (p.get("variants") or {"full": {}}).items():
+        change = change or {}
+        model = GeneratorConfig.from_dict({**base_model, **(change.get("model") or {})})
+        loss = LossWeights(**{**base_loss, **{k: float(v) for k, v in (change.get("loss") or {}).items()}})
+        out[name] = (model, train, loss)
+    return out
+
+
+def split_tensors(path: Path) -> tuple[GaitTensors, GaitTensors]:
+    table, arrays = read_gaits(path)
+    split = np.array(table.column("split").to_pylist())
+    return (GaitTensors.from_arrays(arrays, np.flatnonzero(split == "train")),
+            GaitTensors.from_arrays(arrays, np.flatnonzero(split == "val")))
+
+
+def _train_variant(job: tuple) -> dict[str, Any]:
+    """One variant, in its own process: returns the history and the checkpoint's bytes."""
+    name, model_cfg, cfg, weights, in_gaits, skeleton, every = job
+    train, val = split_tensors(in_gaits)
+    offsets = torch.from_numpy(skeleton.offsets).to(torch.float32)
+    start = time.perf_counter()
+
+    def progress(row: dict) -> None:
+        if row["epoch"] % every == 0 or row["epoch"] == cfg.epochs:
+            val_total = row.get("val_total")
+            print(f"train[{name}]: epoch {row['epoch']}/{cfg.epochs}, teacher forcing {row['teacher_forcing']:.3f}, "
+                  f"loss {row['train_total']:.3f}" + (f", val {val_total:.3f}" if val_total is not None else "")
+                  + f" ({time.perf_counter() - start:.0f} s)", flush=True)
+
+    result = train_generator(train, val, offsets, skeleton.parents, model_cfg, cfg, weights, progress)
+    extra = {"variant": name, "configs": config_dicts(model_cfg, cfg, weights), "epochs": cfg.epochs,
+             "train_gaits": len(train), "val_gaits": len(val)}
+    return {"name": name, "history": result.history, "seconds": time.perf_counter() - start,
+            "checkpoint": checkpoint_bytes(result.model, extra)}
+
+
+def fit_variants(in_gaits: Path, variants: Variants, skeleton: Skeleton, workers: int, progress_every: int
+                 ) -> list[dict[str, Any]]:
+    """Train every variant (``workers`` processes at most); [{name, history, seconds, checkpoint (bytes)}]."""
+    every = max(1, progress_every)
+    jobs = [(name, m, t, w, in_gaits, skeleton, every) for name, (m, t, w) in variants.items()]
+    workers = max(1, min(workers, len(jobs)))
+    if workers == 1:
+        results = [_train_variant(job) for job in jobs]
+    else:
+        with multiprocessing.get_context("spawn").Pool(workers) as pool:
+            results = pool.map(_train_variant, jobs)
+    return results
+
+
+def variant_summary(result: dict[str, Any]) -> dict[str, Any]:
+    """A variant's report entry: seconds, epochs, final teacher forcing and its final train/val losses."""
+    final = result["history"][-1]
+    return {"seconds": round(result["seconds"], 1), "epochs": final["epoch"],
+            "final_teacher_forcing": final["teacher_forcing"],
+            "train": {k[6:]: round(v, 5) for k, v in final.items() if k.startswith("train_")},
+            "val": {k[4:]: round(v, 5) for k, v in final.items() if k.startswith("val_")}}
+
+
+CURVE_COLUMNS = ("variant", "epoch", "teacher_forcing", "train_total", "val_total")
+
+
+def curve_rows(results: list[dict[str, Any]]) -> list[tuple]:
+    """Loss per epoch and variant (CURVE_COLUMNS), for the training-curves plot."""
+    return [(res["name"], row["epoch"], row["teacher_forcing"], round(row["train_total"], 6),
+             round(row["val_total"], 6) if "val_total" in row else "")
+            for res in results for row in res["history"]]

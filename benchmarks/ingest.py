@@ -33,6 +33,7 @@ from __future__ import annotations
 import argparse
 import fnmatch
 import gc
+import hashlib
 import json
 import os
 import platform
@@ -49,7 +50,7 @@ sys.path.insert(0, str(REPO))
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
-from pipeline.ingest.run import IngestConfig, _sha256, ingest_chunk, missing_data_message, plan_chunks  # noqa: E402
+from pipeline.ingest.run import IngestConfig, ingest_chunk, missing_data_message, plan_chunks  # noqa: E402
 from pipeline.io.readers.bvh import read_bvh  # noqa: E402
 from pipeline.core.skeleton import load_skeleton  # noqa: E402
 from pipeline.io.manifests import SourceManifest, load_manifests  # noqa: E402
@@ -135,7 +136,7 @@ def read_parse_breakdown(chunks: list, cfg: IngestConfig) -> dict:
             path = cfg.mocap_root / manifest.name / rel
             if path.is_file():
                 data = path.read_bytes()
-                _sha256(data)
+                hashlib.sha256(data).hexdigest()
                 frames += read_bvh(path, data).frames
     secs = time.perf_counter() - start
     return {"what": "read bytes + sha256 + read_bvh only (one pass, same files)", "source_frames": frames,
@@ -255,7 +256,7 @@ def main(argv: list[str] | None = None) -> dict:
 
     params = load_params(PARAMS)
     cfg = ingest_config(params)
-    manifests = load_manifests(SOURCES)
+    manifests = load_manifests(SOURCES, formats=("bvh",))  # the bvh package reads BVH only
     if not cfg.mocap_root.is_dir():
         sys.exit(missing_data_message(manifests, cfg.mocap_root))
     skeleton = load_skeleton(SKELETON)

@@ -3,12 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import hashlib
 import sys
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from stages.common import REPO, SOURCES, load_params, mocap_root
 
@@ -34,15 +32,21 @@ def _cmd_stage(args: argparse.Namespace) -> int:
 
 
 def _cmd_preview(args: argparse.Namespace) -> int:
+    from pipeline.io.manifests import ManifestError
+    from pipeline.viz.previews import PreviewError
     from pipeline.viz.stick_figures import Motion, render_filmstrip, render_gif
     from stages.preview import bvh_motions, gait_motions
 
     motions: list[Motion] = []
-    if args.gait:
-        motions += gait_motions(Path(args.gaits), args.gait)
-    for bvh in args.bvh or []:
-        motions += bvh_motions(Path(bvh), args.source, load_params(Path(args.params)) if args.params else load_params(),
-                               show_source=not args.canonical_only)
+    try:
+        if args.gait:
+            motions += gait_motions(Path(args.gaits), args.gait)
+        params = load_params(Path(args.params)) if args.params else load_params()
+        for bvh in args.bvh or []:
+            motions += bvh_motions(Path(bvh), args.source, params, show_source=not args.canonical_only)
+    except (PreviewError, ManifestError) as err:
+        print(err, file=sys.stderr)
+        return 2
     if not motions:
         print("nothing to preview: give --gait ID and/or --bvh FILE", file=sys.stderr)
         return 2
@@ -55,16 +59,22 @@ def _cmd_preview(args: argparse.Namespace) -> int:
 
 
 def _cmd_pin(args: argparse.Namespace) -> int:
-    """Rewrite a manifest's file list with the sha256 of every file its globs find under the mocap root."""
+    """Rewrite a manifest's ``files:`` list with the sha256 of every file its globs find under the mocap root;
+    every other line (comments included) stays as it is."""
+    from pipeline.io.manifests import pinned_files, with_files
+
     path = Path(args.manifest)
-    doc = yaml.safe_load(path.read_text())
     root = Path(args.mocap_root) if args.mocap_root else mocap_root(load_params())
-    folder = root / doc["name"]
-    found = sorted({p.relative_to(folder).as_posix() for g in doc["globs"] for p in folder.glob(g) if p.is_file()})
-    doc["files"] = [{"path": rel, "sha256": hashlib.sha256((folder / rel).read_bytes()).hexdigest()} for rel in found]
-    header = "".join(line + "\n" for line in path.read_text().splitlines() if line.startswith("#"))
-    path.write_text(header + yaml.safe_dump(doc, sort_keys=False, width=120, allow_unicode=True))
-    print(f"pinned {len(found)} files in {path}")
+    try:
+        files = pinned_files(path, root)
+    except ValueError as err:  # a ManifestError, or no source folder
+        print(err, file=sys.stderr)
+        return 2
+    text = path.read_text(encoding="utf-8")
+    pinned = with_files(text, files)
+    if pinned != text:
+        path.write_text(pinned, encoding="utf-8")
+    print(f"pinned {len(files)} files in {path}{'' if pinned != text else ' (unchanged)'}")
     return 0
 
 

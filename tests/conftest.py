@@ -27,7 +27,7 @@ def skeleton():
 
 @pytest.fixture(scope="session")
 def manifests():
-    return {m.name: m for m in load_manifests(SOURCES)}
+    return {m.name: m for m in load_manifests(SOURCES, formats=("bvh",))}
 
 
 @pytest.fixture(scope="session")

@@ -11,13 +11,16 @@ span ± a margin (annotations usually cover only part of a trial), per second of
 The same scoring serves any detector that returns (kind, side, time) events, so an established method
 (``zeni_events``, Zeni et al. 2008, via the ``gaitalytics`` package) is scored beside ours on the same input.
 
-A library module: arrays and configs in, numbers out; the stage reads params.yaml and writes the report.
+A library module: manifests, configs and arrays in, trials and numbers out (``annotated_trials`` reads the
+C3D files through the file screen ingest uses, ``pipeline.ingest.screen``); the stage reads params.yaml and
+writes the report.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -33,6 +36,8 @@ from pipeline.ingest.markers import (
     runs,
     select_marker_set,
 )
+from pipeline.ingest.screen import screen_file
+from pipeline.io.manifests import SourceManifest, list_inputs
 from pipeline.io.readers.c3d import C3dClip, positions_m_y_up
 
 SIDES = {"left": (0, 1), "right": (2, 3)}  # heel, toe columns in CONTACT_POINTS order
@@ -96,6 +101,37 @@ def prepare_trial(name: str, clip: C3dClip, marker_sets: Sequence[Mapping[str, A
     filled = {k: int((after[:, i] & ~before[:, i]).sum()) for i, k in enumerate(CONTACT_RULES)}
     return Trial(name=name, fps=clip.rate, times=clip.times(), points=points, annotated=annotated,
                  marker_set=marker_set["name"], pelvis=pelvis, contact_points_zup=zup, filled=filled)
+
+
+def annotated_trials(manifests: Sequence[SourceManifest], mocap_root: Path,
+                     cfg: ValidationConfig = ValidationConfig()) -> tuple[list[Trial], list[dict[str, str]]]:
+    """Every C3D trial with annotated foot strikes / foot offs, prepared; and every other input, with the reason.
+
+    The inputs are those ingest accounts for (``list_inputs``: pinned files and unpinned ones the globs find),
+    screened as ingest screens them. A manifest's ``max_gap_seconds`` overrides ``cfg.max_gap_seconds``.
+    """
+    trials, skipped = [], []
+    for manifest in manifests:
+        if manifest.format != "c3d":
+            raise ValueError(f"manifest {manifest.name}: expected a C3D source (annotated gait events), "
+                             f"found format {manifest.format!r}")
+        source_dir = mocap_root / manifest.name
+        gaps = manifest.max_gap_seconds
+        trial_cfg = replace(cfg, max_gap_seconds=cfg.max_gap_seconds if gaps is None else gaps)
+        for rel, pinned in list_inputs(manifest, source_dir):
+            name = f"{manifest.name}/{rel}"
+            screened = screen_file(manifest, source_dir, rel, pinned)
+            if screened.rejection is not None:
+                skipped.append({"file": name, "reason": screened.rejection})
+            elif not screened.clip.events:
+                skipped.append({"file": name, "reason": "no annotated foot strike / foot off events"})
+            else:
+                try:
+                    trials.append(prepare_trial(name, screened.clip, manifest.marker_sets, manifest.up_axis,
+                                                trial_cfg))
+                except MarkerRuleError as err:
+                    skipped.append({"file": name, "reason": f"no heel/toe markers: {err}"})
+    return trials, skipped
 
 
 def derive_events(points: np.ndarray, fps: float, cfg: ContactConfig) -> list[tuple[str, str, int]]:
@@ -317,6 +353,31 @@ def acceptance(figures: Mapping[str, Any], min_matched: float = 0.95, max_median
             and ours["median_abs_error_ms"] <= ref["median_abs_error_ms"])
     out["passed"] = all(v for k, v in out.items() if isinstance(v, bool))
     return out
+
+
+def contact_report(trials: Sequence[Trial], skipped: Sequence[Mapping[str, str]], figures: Mapping[str, Any],
+                   cfg: ContactConfig, vcfg: ValidationConfig) -> dict:
+    """The validation report (reports/contacts.json): configs, acceptance, figures, trials and the files not
+    validated with their reasons."""
+    return {
+        "contact_config": cfg.__dict__,
+        "validation_config": vcfg.__dict__,
+        "acceptance": acceptance(figures),
+        "detectors": figures,
+        "trials": [{"file": t.name, "marker_set": t.marker_set, "fps": t.fps, "frames": int(len(t.times)),
+                    "annotated_events": len(t.annotated), "gap_samples_filled": t.filled} for t in trials],
+        "not_validated": list(skipped),
+    }
+
+
+def report_summary(report: Mapping[str, Any]) -> str:
+    """One line for people: trials and events, ours and the reference."""
+    figures = report["detectors"]
+    ours, ref = figures["ours"]["overall"], figures.get("zeni_gaitalytics", {}).get("overall", {})
+    return (f"{len(report['trials'])} annotated trials, {ours['annotated_events']} events; ours matched "
+            f"{ours['matched_fraction']:.1%} ({ours['matched_evaluable_fraction']:.1%} of evaluable), median "
+            f"{ours['median_abs_error_ms']} ms; Zeni {ref.get('matched_fraction', float('nan')):.1%}, median "
+            f"{ref.get('median_abs_error_ms')} ms")
 
 
 def render_contacts(trials: Sequence[Trial], events: Mapping[str, Mapping[str, list[Event]]], path) -> None:

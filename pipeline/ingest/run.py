@@ -13,7 +13,6 @@ path, so the output does not depend on where or in which order tasks ran.
 
 from __future__ import annotations
 
-import hashlib
 from collections import defaultdict
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -26,8 +25,8 @@ import torch
 from pipeline.ops.kinematics import canonical_positions
 from pipeline.ingest.marker_trials import MarkerMotion, NotUsable, canonical_motion
 from pipeline.ops.quaternion import qfix, qrot
-from pipeline.io.readers.bvh import BvhClip, BvhError, read_bvh
-from pipeline.io.readers.c3d import C3dError, read_c3d
+from pipeline.io.readers.bvh import BvhClip
+from pipeline.io.readers.c3d import C3dClip
 from pipeline.ops.resample import resample, window_starts
 from pipeline.ingest.retarget import (
     RetargetError,
@@ -39,6 +38,7 @@ from pipeline.ingest.retarget import (
 )
 from pipeline.core.skeleton import Skeleton
 from pipeline.io.manifests import Label, SourceManifest, list_inputs
+from pipeline.ingest.screen import screen_file
 
 
 @dataclass(frozen=True)
@@ -78,10 +78,6 @@ class _Prepared:
     label: Label
     joint_map: dict[str, Any]
     time_offset: float = 0.0  # s from the source clip's start to the first frame used
-
-
-def _sha256(data: bytes) -> str:
-    return hashlib.sha256(data).hexdigest()
 
 
 def plan_chunks(manifests: Sequence[SourceManifest], cfg: IngestConfig) -> list[tuple[SourceManifest, list]]:
@@ -135,27 +131,14 @@ def ingest_chunk(manifest: SourceManifest, skeleton: Skeleton, entries: list, cf
 
 def _read_and_screen(manifest: SourceManifest, source_dir: Path, rel: str, pinned: str | None,
                      rec: FileRecord, cfg: IngestConfig, skeleton: Skeleton) -> _Prepared | None:
-    path = source_dir / rel
-    if not path.is_file():
-        _quarantine(rec, f"missing: the manifest pins {rel} (sha256 {pinned}) but no file is at {path}; "
-                         f"obtain it from {manifest.upstream_url(rel)}")
-        return None
-    data = path.read_bytes()
-    rec.sha256 = _sha256(data)
-    if pinned is None:
-        _quarantine(rec, f"not pinned: the manifest lists no sha256 for this file (found {rec.sha256}); "
-                         "pin it to ingest it")
-        return None
-    if rec.sha256 != pinned:
-        _quarantine(rec, f"sha256 mismatch: expected {pinned} (manifest), found {rec.sha256}")
+    screened = screen_file(manifest, source_dir, rel, pinned)
+    rec.sha256 = screened.sha256
+    if screened.rejection is not None:
+        _quarantine(rec, screened.rejection)
         return None
     if manifest.format == "c3d":
-        return _screen_c3d(manifest, path, data, rel, rec, cfg, skeleton)
-    try:
-        clip = read_bvh(path, data)
-    except BvhError as err:
-        _quarantine(rec, f"malformed BVH: {err}")
-        return None
+        return _screen_c3d(manifest, screened.clip, rel, rec, cfg, skeleton)
+    clip = screened.clip
     rec.frames_in = clip.frames
     label = _gait_label(manifest, rel, rec)
     if label is None:
@@ -183,14 +166,9 @@ def _gait_label(manifest: SourceManifest, rel: str, rec: FileRecord) -> Label | 
     return label
 
 
-def _screen_c3d(manifest: SourceManifest, path: Path, data: bytes, rel: str, rec: FileRecord,
+def _screen_c3d(manifest: SourceManifest, clip: C3dClip, rel: str, rec: FileRecord,
                 cfg: IngestConfig, skeleton: Skeleton) -> _Prepared | None:
-    """A C3D trial: quarantined (malformed), filtered (not a gait, lower-body only, too short) or prepared."""
-    try:
-        clip = read_c3d(path, data)
-    except C3dError as err:
-        _quarantine(rec, f"malformed C3D: {err}")
-        return None
+    """A C3D trial that passed the screen: filtered (not a gait, lower-body only, too short) or prepared."""
     rec.frames_in = clip.frames
     label = _gait_label(manifest, rel, rec)
     if label is None:
@@ -201,7 +179,7 @@ def _screen_c3d(manifest: SourceManifest, path: Path, data: bytes, rel: str, rec
     except NotUsable as err:
         _filter(rec, str(err))
         return None
-    return _Prepared(rec, motion, label, manifest.doc.get("marker_sets", []), time_offset=motion.time_offset)
+    return _Prepared(rec, motion, label, manifest.marker_sets, time_offset=motion.time_offset)
 
 
 def _retarget_group(manifest: SourceManifest, skeleton: Skeleton, items: list[_Prepared],

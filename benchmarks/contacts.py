@@ -27,7 +27,8 @@ sys.path.insert(0, str(REPO))
 
 from pipeline.annotate.contact_validation import DETECTORS, acceptance, our_events, validate, zeni_events  # noqa: E402
 from stages.common import SOURCES, load_params, mocap_root  # noqa: E402
-from stages.validate_contacts import contact_config, load_trials, validation_config  # noqa: E402
+from stages.configs import contact_config, validation_config  # noqa: E402
+from stages.validate_contacts import load_trials  # noqa: E402
 
 OUT = REPO / "benchmarks" / "out" / "contacts.json"
 

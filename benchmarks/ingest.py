@@ -54,7 +54,8 @@ from pipeline.ingest.run import IngestConfig, ingest_chunk, missing_data_message
 from pipeline.io.readers.bvh import read_bvh  # noqa: E402
 from pipeline.core.skeleton import load_skeleton  # noqa: E402
 from pipeline.io.manifests import SourceManifest, load_manifests  # noqa: E402
-from stages.common import PARAMS, SKELETON, SOURCES, load_params, mocap_root  # noqa: E402
+from stages.common import PARAMS, SKELETON, SOURCES, load_params  # noqa: E402
+from stages.configs import ingest_config  # noqa: E402
 
 TARGET_RATIO = 300
 OUT_DIR = REPO / "benchmarks" / "out"
@@ -68,13 +69,6 @@ QUICK_SAMPLE = (("bandai_namco_motiondataset", "dataset-1_walk_*.bvh", 1),)
 QUICK_CHUNKS = 3
 SAMPLE_MIN_REPEATS = 5  # the sample pass is short (tens of ms); take more repeats for a stable median
 VALUE_TOL = 1e-9
-
-
-def ingest_config(params: dict) -> IngestConfig:
-    p = params["ingest"]
-    return IngestConfig(mocap_root=mocap_root(params), target_fps=float(p["target_fps"]), window=int(p["window"]),
-                        stride=int(p["stride"]), min_gait_speed=float(p["min_gait_speed"]),
-                        chunk_frames=int(p["chunk_frames"]))
 
 
 def timed_pass(chunks: list, skeleton, cfg: IngestConfig) -> tuple[float, dict[str, float], list]:
@@ -258,7 +252,7 @@ def main(argv: list[str] | None = None) -> dict:
     cfg = ingest_config(params)
     manifests = load_manifests(SOURCES, formats=("bvh",))  # the bvh package reads BVH only
     if not cfg.mocap_root.is_dir():
-        sys.exit(missing_data_message(manifests, cfg.mocap_root))
+        sys.exit(missing_data_message(manifests, cfg.mocap_root, "params.yaml data.mocap_root"))
     skeleton = load_skeleton(SKELETON)
     chunks = plan_chunks(manifests, cfg)
     if args.quick:

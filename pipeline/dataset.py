@@ -1,4 +1,4 @@
-"""The published dataset directory (DESIGN.md §8): its loaders, its verifier, and the writers the publish
+"""The published dataset directory: its loaders, its verifier, and the writers the publish
 stage uses for the files this module reads.
 
 A published directory holds

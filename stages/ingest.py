@@ -26,7 +26,7 @@ def main(params_path: Path | None = None, out_gaits: Path = OUT_GAITS, out_repor
     cfg = ingest_config(params)
     manifests = load_manifests(sources, formats=("bvh", "c3d"))
     if not cfg.mocap_root.is_dir():
-        sys.exit(missing_data_message(manifests, cfg.mocap_root))
+        sys.exit(missing_data_message(manifests, cfg.mocap_root, "params.yaml data.mocap_root"))
     skeleton = load_skeleton(SKELETON)
     windows, report = run_ingest(manifests, skeleton, cfg, scheduler_address=os.environ.get("DASK_SCHEDULER_ADDRESS"),
                                  workers=params["ingest"].get("workers"))

@@ -20,19 +20,11 @@ from pipeline.annotate.contact_validation import (
 )
 from pipeline.io.files import write_json
 from pipeline.io.manifests import load_manifests
-from pipeline.ops.contacts import ContactConfig
 from stages.common import REPO, SOURCES, load_params, mocap_root
+from stages.configs import contact_config, validation_config
 
 OUT_REPORT = REPO / "reports" / "contacts.json"
 OUT_PLOT = REPO / "reports" / "contacts.png"
-
-
-def contact_config(params: dict[str, Any]) -> ContactConfig:
-    return ContactConfig(**{k: float(v) for k, v in params["annotate"]["contacts"].items()})
-
-
-def validation_config(params: dict[str, Any]) -> ValidationConfig:
-    return ValidationConfig(**{k: float(v) for k, v in (params.get("validate_contacts") or {}).items()})
 
 
 def load_trials(root: Path, sources: Path, vcfg: ValidationConfig) -> tuple[list, list[dict[str, str]]]:

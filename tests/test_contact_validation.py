@@ -19,6 +19,7 @@ from pipeline.annotate.contact_validation import (
 )
 from pipeline.ops.contacts import ContactConfig
 from stages import validate_contacts
+from stages.configs import contact_config, validation_config
 from stages.common import SOURCES, load_params
 from tests.conftest import MOCAP
 
@@ -34,9 +35,9 @@ ANNOTATED = {  # file -> annotated foot strikes + foot offs (EVENT group; "Left-
 
 
 @pytest.fixture(scope="module")
-def validation():
+def validation(mocap):
     params = load_params()
-    cfg, vcfg = validate_contacts.contact_config(params), validate_contacts.validation_config(params)
+    cfg, vcfg = contact_config(params), validation_config(params)
     trials, skipped = validate_contacts.load_trials(MOCAP, SOURCES, vcfg)
     figures, events = validate(trials, cfg, vcfg)
     return {"trials": trials, "skipped": skipped, "figures": figures, "events": events}
@@ -68,7 +69,7 @@ def test_our_detector_meets_the_acceptance_figures(validation):
 
 def test_one_speed_threshold_puts_strikes_early(validation):
     """Without the landing hysteresis (landing speed = leaving speed) strikes come early and fewer match."""
-    cfg = validate_contacts.contact_config(load_params())
+    cfg = contact_config(load_params())
     single = ContactConfig(**{**cfg.__dict__, "landing_speed": cfg.max_speed})
     figures, _ = validate(validation["trials"], single, ValidationConfig(), reference=False)
     ours, hyst = figures["ours"]["overall"], validation["figures"]["ours"]["overall"]
@@ -130,6 +131,7 @@ def test_false_events_count_only_inside_the_annotated_span():
     assert s["unmatched"] == [{"kind": "foot_strike", "side": "left", "time": 3.0, "evaluable": True}]
 
 
+@pytest.mark.slow  # the whole validation again, through the stage
 def test_stage_writes_deterministic_report_and_plot(tmp_path, validation):
     report = validate_contacts.main(out_report=tmp_path / "contacts.json", out_plot=tmp_path / "contacts.png")
     text = (tmp_path / "contacts.json").read_text()

@@ -12,7 +12,7 @@ The same scoring serves any detector that returns (kind, side, time) events, so 
 (``zeni_events``, Zeni et al. 2008, via the ``gaitalytics`` package) is scored beside ours on the same input.
 
 A library module: manifests, configs and arrays in, trials and numbers out (``annotated_trials`` reads the
-C3D files through the file screen ingest uses, ``pipeline.ingest.screen``); the stage reads params.yaml and
+C3D files through the file screen ingest uses, ``pipeline.ingest.screen``); the stage reads the params and
 writes the report.
 """
 
@@ -36,6 +36,7 @@ from pipeline.ingest.markers import (
     runs,
     select_marker_set,
 )
+from pipeline.io.files import save_figure
 from pipeline.ingest.screen import screen_file
 from pipeline.io.manifests import SourceManifest, list_inputs
 from pipeline.io.readers.c3d import C3dClip, positions_m_y_up
@@ -416,5 +417,4 @@ def render_contacts(trials: Sequence[Trial], events: Mapping[str, Mapping[str, l
                       label="Zeni / gaitalytics")]
     fig.legend(handles=handles, loc="upper center", ncol=6, fontsize=9, frameon=False)
     fig.tight_layout(rect=(0, 0, 1, 1 - 0.5 / fig.get_figheight()))
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
+    save_figure(fig, path, dpi=80)

@@ -31,7 +31,7 @@ def markdown(report: dict) -> str:
                      f"| {v.get('root_distance_m', '')} |")
     real = report["real_reference"]
     lines += ["", f"## {report['rollout_steps']}-step rollouts", "",
-              f"Root placement: {report['placement']['root_advance']} (params.yaml generate; Table 1 places the root "
+              f"Root placement: {report['placement']['root_advance']} (the `generate` params; Table 1 places the root "
               "by the predicted speed on the ground-truth path).", "",
               f"Real test walks: speed 5-95 % {real['speed_m_s_p5_p95'][0]:.2f}-{real['speed_m_s_p5_p95'][1]:.2f} m/s, "
               f"foot skating {real['foot_skating_m_s']:.3f} m/s (heel/toe horizontal speed while in contact).", "",

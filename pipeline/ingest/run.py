@@ -351,9 +351,10 @@ def build_report(records: Sequence[FileRecord], windows: Sequence[dict[str, Any]
 
 
 
-def missing_data_message(manifests: Sequence[SourceManifest], mocap_root: Path) -> str:
-    """What to fetch, and from where, when the raw-data folder is absent (nothing is downloaded)."""
-    lines = [f"The mocap root {mocap_root} does not exist. Point params.yaml data.mocap_root at a folder holding:"]
+def missing_data_message(manifests: Sequence[SourceManifest], mocap_root: Path, setting: str) -> str:
+    """What to fetch, and from where, when the raw-data folder is absent (nothing is downloaded); setting: where
+    the user points the pipeline at the folder."""
+    lines = [f"The mocap root {mocap_root} does not exist. Point {setting} at a folder holding:"]
     for m in manifests:
         up = m.doc["upstream"]
         lines.append(f"  {m.name}/  {len(m.files)} files from {up['repository']} at commit {up['commit']} "

@@ -1,4 +1,4 @@
-"""Time-based resampling and 60-frame windows (DESIGN.md §4).
+"""Time-based resampling and 60-frame windows.
 
 Rotations are interpolated by SLERP and positions linearly at the target instants; frames are never
 dropped or duplicated by index, so any source rate maps onto any target rate without aliasing steps.

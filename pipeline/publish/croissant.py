@@ -1,4 +1,4 @@
-"""Croissant 1.1 JSON-LD for a published gait directory (DESIGN.md §8), and the checks that keep it true.
+"""Croissant 1.1 JSON-LD for a published gait directory, and the checks that keep it true.
 
 The document describes the files the directory ships (the Parquet gaits, one file or ``gaits-*.parquet``
 shards, and ``gaits.h5``, each with its sha256) and one record set, ``gaits``, with a field per Parquet column.

@@ -1,4 +1,4 @@
-"""The published gait table (DESIGN.md §8): real annotated gaits and synthetic gaits in one schema, with lineage.
+"""The published gait table: real annotated gaits and synthetic gaits in one schema, with lineage.
 
 Columns, one row per gait:
     gait_id, kind ("real" | "synthetic"), split (train/val/test; "synthetic"), source, content, label_method;

@@ -1,7 +1,7 @@
 """What `emogait preview` draws: gaits of a gait table by id, or a BVH clip of a mocap source on the canonical
 skeleton (its first window, exactly as ingest makes it) beside the same instants on the source's own rig.
 
-Paths, manifests and configs in, ``Motion``s out (``stick_figures`` renders them); never params.yaml.
+Paths, manifests and configs in, ``Motion``s out (``stick_figures`` renders them); never the pipeline's params.
 """
 
 from __future__ import annotations

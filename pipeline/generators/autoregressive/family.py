@@ -1,0 +1,40 @@
+"""The affect-based autoregressive network (paper §4) as a generator family (``pipeline.generators.base``): each
+plan row's gait continues the first ``prefix`` frames of a real seed gait along its trajectory piece, which is
+placed at the seed's last root position and direction of travel."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import torch
+
+from pipeline.core.skeleton import Skeleton
+from pipeline.generators.autoregressive.network import EmotiveGaitNet
+from pipeline.generators.autoregressive.rollout import PlacementConfig, Seeds, generate, place_paths
+from pipeline.generators.base import GeneratedMotion
+
+NAME = "autoregressive_affect"
+
+
+class AutoregressiveFamily:
+    """A trained network with the real gaits its seeds come from (``arrays``; rows by ``gait_id`` in ``row_of``)."""
+
+    name = NAME
+
+    def __init__(self, model: EmotiveGaitNet, model_sha256: str, arrays: dict[str, np.ndarray],
+                 row_of: dict[str, int], skeleton: Skeleton, placement: PlacementConfig, prefix: int):
+        self.model, self.model_sha256 = model, model_sha256
+        self.arrays, self.row_of, self.skeleton = arrays, row_of, skeleton
+        self.placement, self.prefix = placement, prefix
+        self.offsets = torch.from_numpy(skeleton.offsets).to(torch.float32)
+
+    def generate(self, rows: Sequence[dict[str, Any]], paths: torch.Tensor, emotions: torch.Tensor) -> GeneratedMotion:
+        seed_rows = np.array([self.row_of[r["seed_gait_id"]] for r in rows])
+        seeds = Seeds.from_arrays(self.arrays, seed_rows, self.prefix)
+        g = generate(self.model, seeds, place_paths(paths, seeds), emotions, self.offsets, self.skeleton.parents,
+                     self.placement)
+        return GeneratedMotion(g.positions, g.rotations, g.heading,
+                               context_positions=torch.from_numpy(self.arrays["positions"][seed_rows, :self.prefix]),
+                               conditioned_phase=g.theta)

@@ -6,7 +6,8 @@ from pathlib import Path
 
 import pyarrow as pa
 
-from pipeline.io.gait_table import EMOTIONS, read_gaits, write_json_atomic, write_parquet_atomic
+from pipeline.io.files import write_json, write_parquet
+from pipeline.io.gait_table import EMOTIONS, read_gaits
 from pipeline.split import assign_splits, dominant_emotion, split_report
 from stages.common import REPO, load_params
 
@@ -26,9 +27,9 @@ def main(params_path: Path | None = None, in_gaits: Path = IN_GAITS, out_gaits: 
     clip_strata = dict(zip(clip_ids, strata))  # all windows of a clip share its label
     assignment = assign_splits(clip_strata, fractions, int(p["seed"]))
     split = pa.array([assignment[c] for c in clip_ids], type=pa.string())
-    write_parquet_atomic(table.append_column("split", split), out_gaits)
+    write_parquet(table.append_column("split", split), out_gaits)
     report = split_report(clip_ids, table.column("source").to_pylist(), strata, assignment, fractions, int(p["seed"]))
-    write_json_atomic(report, out_report)
+    write_json(report, out_report)
     t = report["totals"]
     print("split: " + ", ".join(f"{s} {t[s]['clips']} clips / {t[s]['gaits']} gaits" for s in t)
           + f"; clips in two splits: {len(report['clips_in_two_splits'])}")

@@ -17,6 +17,11 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+import pyarrow as pa  # noqa: E402
+
+from pipeline.core.skeleton import Skeleton  # noqa: E402
+from pipeline.io.files import atomic_path, save_figure  # noqa: E402
+from pipeline.ops.contacts import CONTACT_POINTS  # noqa: E402
 
 LEFT, RIGHT, TRUNK = "#1f5fbf", "#c0392b", "#222222"
 
@@ -91,8 +96,7 @@ def render_filmstrip(motions: Sequence[Motion], out: str | Path, frames: int = 8
         ax.set_title("top view (x, z)", fontsize=8)
         ax.tick_params(labelsize=6)
     fig.tight_layout()
-    fig.savefig(out, dpi=dpi)
-    plt.close(fig)
+    save_figure(fig, out, dpi=dpi)
     return out
 
 
@@ -101,7 +105,6 @@ def render_gif(motion: Motion, out: str | Path, fps: float = 30.0) -> Path:
     from matplotlib.animation import FuncAnimation, PillowWriter
 
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     pos = np.asarray(motion.positions, dtype=np.float64)
     fwd, _ = _travel_axes(pos, motion.root)
     fig, ax = plt.subplots(figsize=(3, 3.5))
@@ -121,7 +124,8 @@ def render_gif(motion: Motion, out: str | Path, fps: float = 30.0) -> Path:
                 lines[j].set_data([u[parent], u[j]], [p[parent, 1], p[j, 1]])
         return [ln for ln in lines if ln is not None]
 
-    FuncAnimation(fig, draw, frames=len(pos), blit=True).save(out, writer=PillowWriter(fps=fps))
+    with atomic_path(out) as tmp:
+        FuncAnimation(fig, draw, frames=len(pos), blit=True).save(tmp, writer=PillowWriter(fps=fps))
     plt.close(fig)
     return out
 
@@ -162,8 +166,7 @@ def render_annotation(clips: Sequence[AnnotatedClip], out: str | Path, dpi: int 
         axp.set_yticks([0, np.pi, 2 * np.pi], ["0 (L strike)", "π (R strike)", "2π"])
         axp.set_xlabel("time (s)")
     fig.tight_layout()
-    fig.savefig(out, dpi=dpi)
-    plt.close(fig)
+    save_figure(fig, out, dpi=dpi)
     return out
 
 
@@ -186,7 +189,42 @@ def render_trajectories(trajectories: Sequence[tuple[str, np.ndarray, Sequence[n
     fig.suptitle("Planned trajectories (grey, metres, start at the origin heading up) and generated root paths")
     fig.tight_layout()
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=dpi)
-    plt.close(fig)
+    save_figure(fig, out, dpi=dpi)
     return out
+
+
+def annotation_examples(table: pa.Table, arrays: dict[str, np.ndarray], annotations: dict[str, np.ndarray],
+                        skeleton: Skeleton, fps: float, out: Path) -> None:
+    """Heel/toe heights, contacts and phase of the first (labelled, where there is one) walk of up to three
+    sources, drawn by ``render_annotation``."""
+    chosen: dict[str, str] = {}
+    for cid, src, content, method in zip(table.column("clip_id").to_pylist(), table.column("source").to_pylist(),
+                                         table.column("content").to_pylist(), table.column("label_method").to_pylist()):
+        if content == "walk" and (src not in chosen or (method and not chosen[src][1])):
+            chosen[src] = (cid, method)
+    clip_ids = table.column("clip_id").to_pylist()
+    starts = np.round(table.column("t_start").to_numpy() * fps).astype(int)
+    points = [skeleton.index(n) for n in CONTACT_POINTS]
+    examples = []
+    for src, (cid, _) in sorted(chosen.items())[:3]:
+        rows = [r for r, c in enumerate(clip_ids) if c == cid]
+        frames = starts[rows[-1]] + arrays["positions"].shape[1]
+        heights, contacts, phase = np.zeros((frames, 4)), np.zeros((frames, 4)), np.zeros(frames)
+        for r in rows:
+            s = slice(starts[r], starts[r] + arrays["positions"].shape[1])
+            heights[s] = arrays["positions"][r][:, points, 1]
+            contacts[s] = annotations["contacts"][r]
+            phase[s] = annotations["phase"][r]
+        examples.append(AnnotatedClip(cid, fps, heights, contacts, phase, CONTACT_POINTS))
+    render_annotation(examples, out)
+
+
+def preview_gaits(windows: Sequence[dict], skeleton: Skeleton) -> list[Motion]:
+    """One gait per source, a labelled walk where the source has one, for a look at the retargeting."""
+    picked: dict[str, dict] = {}
+    rank = lambda w: (w["emotion"] is not None, w["content"] == "walk")  # noqa: E731
+    for w in windows:
+        if w["source"] not in picked or rank(w) > rank(picked[w["source"]]):
+            picked[w["source"]] = w
+    return [Motion(f"{w['gait_id'].split('/')[0]}\n{w['style']} {w['content']}", w["positions"], skeleton.parents,
+                   skeleton.names) for w in picked.values()]

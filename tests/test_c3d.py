@@ -80,6 +80,7 @@ def test_every_c3d_file_is_accounted_for_with_a_reason(ingested, manifest):
         assert fragment in entry["reason"], (rel, entry["reason"])
 
 
+@pytest.mark.usefixtures("mocap")
 def test_malformed_evart_reason_names_the_file_and_expected_vs_found():
     path = ROOT / "sample_11" / "evart.c3d"
     with pytest.raises(C3dError) as info:
@@ -108,6 +109,7 @@ def test_full_body_trial_goes_through_retargeting_into_the_gait_table(ingested, 
     assert 1.0 < speed < 1.6  # SOURCES.md: ~1.28 m/s
 
 
+@pytest.mark.usefixtures("mocap")
 def test_z_up_and_millimetres_become_y_up_metres():
     """Walk1 (mm) and Gait with EMG (POINT:UNITS 'm'): pelvis ~1 m above the heels, walking horizontally."""
     for path, units in ((WALK1, "mm"), (EMG, "m")):
@@ -124,6 +126,7 @@ def test_z_up_and_millimetres_become_y_up_metres():
         assert abs(travel[1]) < 0.1 and 1.0 < np.linalg.norm(travel[[0, 2]]) / duration < 1.6, path.name
 
 
+@pytest.mark.usefixtures("mocap")
 def test_subject_prefixed_labels_are_resolved():
     pig = read_c3d(ROOT / "sample_03" / "gait-pig.c3d")
     assert pig.subjects == ("A22",)
@@ -134,6 +137,7 @@ def test_subject_prefixed_labels_are_resolved():
     assert matt.raw_labels[matt.index("RANK")] == "Matt:RANK"
 
 
+@pytest.mark.usefixtures("mocap")
 def test_duplicated_labels_keep_the_column_with_data_and_drop_ambiguous_ones():
     clip = read_c3d(WALK1)
     assert len(set(clip.labels)) == len(clip.labels)
@@ -142,6 +146,7 @@ def test_duplicated_labels_keep_the_column_with_data_and_drop_ambiguous_ones():
     assert any("'VMID' appears 3 times with different data" in n for n in clip.notes)
 
 
+@pytest.mark.usefixtures("mocap")
 def test_unflagged_zero_samples_are_gaps():
     clip = read_c3d(ROOT / "sample_23" / "Vicon_analysis.c3d")
     k = clip.index("LTOE")
@@ -151,6 +156,7 @@ def test_unflagged_zero_samples_are_gaps():
     assert not (finite == 0).all(-1).any()  # no (0, 0, 0) left as a position
 
 
+@pytest.mark.usefixtures("mocap")
 def test_non_standard_residual_words_are_decoded_and_coordinates_trusted():
     """marche281.c3d: every residual word reads as negative to py-c3d; as 16-bit words it is valid."""
     clip = read_c3d(ROOT / "sample_30" / "marche281.c3d")
@@ -162,6 +168,7 @@ def test_non_standard_residual_words_are_decoded_and_coordinates_trusted():
     assert np.abs(np.diff(heel, axis=0)).max() < 0.05  # continuous at 240 Hz: no garbage
 
 
+@pytest.mark.usefixtures("mocap")
 def test_events_in_both_label_styles():
     walk1 = read_c3d(WALK1)  # contexts "LHS", "RTO", labels empty
     assert [(e.kind, e.side) for e in walk1.events[:2]] == [("foot_strike", "left"), ("foot_off", "right")]
@@ -243,7 +250,7 @@ BAD = {
 
 
 @pytest.fixture(scope="module")
-def bad_ingest(tmp_path_factory, manifest, skeleton):
+def bad_ingest(tmp_path_factory, manifest, skeleton, mocap):
     root = tmp_path_factory.mktemp("c3d_bad")
     base = FLOAT_INTEL.read_bytes()
     doc = yaml.safe_load(MANIFEST.read_text())
@@ -274,6 +281,7 @@ def test_malformed_c3d_is_quarantined_with_a_reason(bad_ingest, name):
     assert BAD[name][1] in reason, reason
 
 
+@pytest.mark.usefixtures("mocap")
 def test_malformed_c3d_raises_c3d_error_never_anything_else():
     base = FLOAT_INTEL.read_bytes()
     rng = np.random.default_rng(7)
@@ -293,6 +301,7 @@ def test_bad_file_beside_good_ones_does_not_stop_the_good(bad_ingest):
     assert report["files_seen"] == len(BAD) == report["files_quarantined"]
 
 
+@pytest.mark.usefixtures("mocap")
 def test_reader_on_good_float_file_matches_the_int_twin():
     """Eb015pi (INT) and Eb015pr (REAL) hold the same capture: same labels, positions within int resolution."""
     a, b = read_c3d(ROOT / "sample_01" / "Eb015pi.c3d"), read_c3d(FLOAT_INTEL)

@@ -22,6 +22,8 @@ def _run(args, cwd, env):
     return subprocess.run(args, cwd=cwd, env=env, capture_output=True, text=True, check=True)
 
 
+@pytest.mark.slow
+@pytest.mark.usefixtures("mocap")
 def test_dvc_repro_runs_every_stage_then_is_a_noop(tmp_path):
     work = tmp_path / "repo"
     for rel in COPY:
@@ -144,6 +146,7 @@ def check_audit(reports: Path, published: Path, tmp_path: Path) -> None:
     assert theirs["labels"] == metrics["labels"] and theirs["recognisability"] == recognition
 
 
+@pytest.mark.slow  # one Python (torch, dask, ...) per stage
 @pytest.mark.parametrize("stage", sorted(DVC))
 def test_stage_deps_cover_every_library_module_it_imports(stage):
     code = (f"import sys, stages.{stage}; print('\\n'.join(sorted(m.__file__ for n, m in sys.modules.items() "

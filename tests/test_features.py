@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from pipeline.ops.features import (
-    AFFECTIVE_FEATURES,
+    AFFECTIVE_NAMES,
     affective_features,
     heron_area,
     movement_features,
@@ -142,15 +142,87 @@ def test_annotation_equals_the_training_path(annotated, skeleton):
     assert torch.allclose(direct[..., keep], training[..., keep], atol=1e-4)
 
 
-def test_feature_table_is_the_design_table():
-    design = {0: ("angle", (17, 9, 13)), 1: ("angle", (19, 9, 15)), 2: ("distance_ratio", (16, 11, 16, 0)),
-              3: ("distance_ratio", (20, 11, 20, 0)), 4: ("distance_ratio", (16, 20, 11, 0)),
-              5: ("area_ratio", (17, 9, 13, 17, 0, 13)), 6: ("area_ratio", (19, 9, 15, 19, 0, 15)),
-              7: ("angle", (13, 14, 15)), 8: ("angle", (17, 18, 19)), 9: ("angle", (12, 11, 13)),
-              10: ("angle", (12, 11, 17)), 11: ("angle", (12, 0, 2)), 12: ("angle", (12, 0, 6)),
-              13: ("distance_ratio", (4, 8, 11, 0)), 14: ("angle", (8, 0, 4)), 15: ("angle", (1, 2, 3)),
-              16: ("angle", (5, 6, 7)), 17: ("area_ratio", (20, 11, 16, 8, 0, 4))}
-    assert dict(enumerate(AFFECTIVE_FEATURES)) == design
+# DESIGN.md §5's table of the 18 affective features, written with the joints' names (manifests/skeleton.yaml) rather
+# than the library's index table, and computed below in numpy by plain vector algebra (arccos of the normalised
+# dot product, cross-product areas), not by the library's atan2 / Heron formulas.
+DESIGN_FEATURES = (
+    ("angle", "lower_back", "right_shoulder", "left_shoulder"),  # 0: shoulders seen from the lower back
+    ("angle", "lower_back", "right_hand", "left_hand"),  # 1: hands seen from the lower back
+    ("distance_ratio", ("left_hand_index", "neck"), ("left_hand_index", "root")),  # 2
+    ("distance_ratio", ("right_hand_index", "neck"), ("right_hand_index", "root")),  # 3
+    ("distance_ratio", ("left_hand_index", "right_hand_index"), ("neck", "root")),  # 4
+    ("area_ratio", ("right_shoulder", "lower_back", "left_shoulder"), ("right_shoulder", "root", "left_shoulder")),
+    ("area_ratio", ("right_hand", "lower_back", "left_hand"), ("right_hand", "root", "left_hand")),  # 6
+    ("angle", "left_elbow", "left_shoulder", "left_hand"),  # 7
+    ("angle", "right_elbow", "right_shoulder", "right_hand"),  # 8
+    ("angle", "neck", "head", "left_shoulder"),  # 9
+    ("angle", "neck", "head", "right_shoulder"),  # 10
+    ("angle", "root", "head", "left_knee"),  # 11
+    ("angle", "root", "head", "right_knee"),  # 12
+    ("distance_ratio", ("left_toe", "right_toe"), ("neck", "root")),  # 13
+    ("angle", "root", "right_toe", "left_toe"),  # 14
+    ("angle", "left_knee", "left_hip", "left_heel"),  # 15
+    ("angle", "right_knee", "right_hip", "right_heel"),  # 16
+    ("area_ratio", ("right_hand_index", "neck", "left_hand_index"), ("right_toe", "root", "left_toe")),  # 17
+)
+
+
+def _design_features(positions: np.ndarray, skeleton) -> np.ndarray:
+    """The design table computed by hand: positions (..., 21, 3) float64 -> (..., 18)."""
+    def p(name):
+        return positions[..., skeleton.index(name), :]
+
+    def length(v):
+        return np.sqrt((v * v).sum(-1))
+
+    def area(a, b, c):
+        return 0.5 * length(np.cross(p(b) - p(a), p(c) - p(a)))
+
+    out = []
+    for kind, *joints in DESIGN_FEATURES:
+        if kind == "angle":
+            vertex, a, b = joints
+            u, w = p(a) - p(vertex), p(b) - p(vertex)
+            out.append(np.arccos(np.clip((u * w).sum(-1) / (length(u) * length(w)), -1.0, 1.0)))
+        elif kind == "distance_ratio":
+            (a, b), (c, d) = joints
+            out.append(length(p(a) - p(b)) / length(p(c) - p(d)))
+        else:
+            top, bottom = joints
+            out.append(area(*top) / area(*bottom))
+    return np.stack(out, axis=-1)
+
+
+def _generic_pose(skeleton) -> np.ndarray:
+    """The rest pose (from the skeleton's offsets) with every joint moved a few cm at random: no two features are
+    alike and no triangle is flat, so a wrong joint, kind or order in the library's table changes a number."""
+    pose = np.zeros((21, 3))
+    for j, parent in enumerate(skeleton.parents):
+        if parent >= 0:
+            pose[j] = pose[parent] + skeleton.offsets[j]
+    return pose + np.random.default_rng(11).normal(scale=0.04, size=pose.shape)
+
+
+def test_feature_table_is_the_design_table(skeleton):
+    """Each of the 18 features, as the library computes it, equals the design table's definition by hand."""
+    assert len(AFFECTIVE_NAMES) == len(DESIGN_FEATURES) == 18
+    assert [n.split("_")[0] for n in AFFECTIVE_NAMES] == [k.split("_")[0] for k, *_ in DESIGN_FEATURES]
+    pose = _generic_pose(skeleton)
+    got = affective_features(torch.from_numpy(pose)).numpy()
+    expected = _design_features(pose, skeleton)
+    assert len(np.unique(np.round(expected, 3))) == 18  # generic: a swapped feature could not hide
+    for k, name in enumerate(AFFECTIVE_NAMES):
+        assert got[k] == pytest.approx(expected[k], rel=1e-9, abs=1e-12), f"feature {k} ({name}): {DESIGN_FEATURES[k]}"
+
+
+def test_feature_table_is_the_design_table_on_real_poses(reference_ingest, skeleton):
+    """The same on every frame of the reference clips (real poses: bent knees, hanging arms, near-flat triangles)."""
+    positions = reference_ingest["arrays"]["positions"].astype(np.float64)
+    got = affective_features(torch.from_numpy(positions)).numpy()
+    expected = _design_features(positions, skeleton)
+    for k, name in enumerate(AFFECTIVE_NAMES):
+        np.testing.assert_allclose(got[..., k], expected[..., k], rtol=1e-9, atol=1e-12,
+                                   err_msg=f"feature {k} ({name}): {DESIGN_FEATURES[k]}")
 
 
 def test_movement_features_on_a_straight_walk():

@@ -187,6 +187,7 @@ def test_a_manifest_is_never_a_key_error(tmp_path):
 # emogait pin: only the files: block changes.
 
 
+@pytest.mark.usefixtures("mocap")
 @pytest.mark.parametrize("shipped", SHIPPED, ids=lambda p: p.stem)
 def test_pin_leaves_every_shipped_manifest_byte_identical(tmp_path, shipped):
     copy = tmp_path / shipped.name
@@ -209,6 +210,7 @@ def _damage_files_block(text: str) -> str:
     return "".join(lines[:start + 1] + [line for e in kept for line in e])
 
 
+@pytest.mark.usefixtures("mocap")
 @pytest.mark.parametrize("shipped", SHIPPED, ids=lambda p: p.stem)
 def test_pin_restores_the_shipped_bytes_after_the_files_list_is_damaged(tmp_path, shipped):
     text = shipped.read_text()
@@ -252,6 +254,7 @@ def test_check_manifest_without_pins_ignores_only_the_files_list():
     assert check_manifest(text, PYMO, pins=False)["name"] == "pymo_demo"
 
 
+@pytest.mark.usefixtures("mocap")
 def test_list_inputs_unchanged_on_the_real_data():
     """The inputs every stage accounts for are the pinned files, as pathlib's glob finds them."""
     for manifest in load_manifests(SOURCES, formats=("bvh", "c3d")):

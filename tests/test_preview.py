@@ -2,6 +2,7 @@
 
 import matplotlib.image as mpimg
 import numpy as np
+import pytest
 
 from stages.cli import main
 from tests.conftest import MOCAP
@@ -23,6 +24,8 @@ def test_preview_of_gait_ids_draws_both_sides(tmp_path, full_ingest):
     assert _colour_fraction(img, (0xC0, 0x39, 0x2B)) > 1e-3  # right limbs
 
 
+@pytest.mark.slow
+@pytest.mark.usefixtures("mocap")
 def test_preview_of_a_bvh_clip_and_a_gif(tmp_path):
     bvh = MOCAP / "cmu_iclone/All_BVH/subjects/002/002_01.bvh"
     png, gif = tmp_path / "clip.png", tmp_path / "clip.gif"

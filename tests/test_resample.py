@@ -2,6 +2,7 @@
 
 import math
 
+import pytest
 import torch
 
 from pipeline.ops.quaternion import axis_angle, qangle
@@ -25,6 +26,7 @@ def test_resampling_to_the_own_rate_reproduces_the_clip():
     assert torch.equal(r2, root) and torch.equal(q2, rot)
 
 
+@pytest.mark.usefixtures("mocap")
 def test_resampling_a_real_clip_to_its_own_rate_reproduces_it(manifests, skeleton):
     from pipeline.io.readers.bvh import read_bvh
     from pipeline.ingest.retarget import bvh_point_positions, map_joints, referenced_points, retarget_to_canonical

@@ -43,6 +43,7 @@ def _angles_deg(a, b):
 
 @pytest.mark.parametrize("source", ["bandai_namco_motiondataset", "cmu_bvh11", "cmu_iclone", "pymo_demo",
                                     "bvh_python_tests"])
+@pytest.mark.usefixtures("mocap")
 def test_mapped_bone_directions_match_the_source(source, manifests, skeleton):
     m = manifests[source]
     parents = list(skeleton.parents[1:])

@@ -23,7 +23,7 @@ PYMO_FILE = "demos/data/AV_8Walk_Meredith_HVHA_Rep1.bvh"
 
 
 @pytest.fixture(scope="module")
-def links(tmp_path_factory):
+def links(tmp_path_factory, mocap):
     """tmp/mocap -> the real root; tmp/sources/<name> -> the real source folders; tmp/linked -> tmp/sources."""
     tmp = tmp_path_factory.mktemp("links")
     (tmp / "mocap").symlink_to(MOCAP, target_is_directory=True)
@@ -102,6 +102,7 @@ def test_validate_contacts_through_links(links):
     assert [{**s, "reason": s["reason"].replace(str(links / "linked"), str(MOCAP))} for s in skipped] == real_skipped
 
 
+@pytest.mark.usefixtures("mocap")
 def test_linked_folders_inside_a_source_are_followed_once(tmp_path):
     """A ``**`` glob walks into a linked folder (pathlib's glob of Python 3.11 does not) and a link back to an
     enclosing folder is walked once; the file found through the link passes the screen."""

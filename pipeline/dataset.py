@@ -36,8 +36,9 @@ import pyarrow.parquet as pq
 import torch
 from torch.utils.data import Dataset
 
+from pipeline.core.emotions import EMOTIONS
 from pipeline.io.files import META_KEY, atomic_path, read_meta, schema_meta, sha256_file, write_text
-from pipeline.io.gait_table import EMOTIONS, column_array
+from pipeline.io.gait_table import column_array
 
 ID_COLUMN = "gait_id"
 REQUIRED_COLUMNS = (ID_COLUMN, "kind", "positions", "rotations")  # present, and never null

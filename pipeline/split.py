@@ -11,15 +11,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
+# Transitional, until they import it from pipeline.core.emotions: stages/split.py and pipeline/audit/metrics.py
+# still import dominant_emotion from here.
+from pipeline.core.emotions import dominant_emotion  # noqa: F401
+
 SPLITS = ("train", "val", "test")
-
-
-def dominant_emotion(emotion: np.ndarray | None, names: Sequence[str]) -> str:
-    """The largest component's name, 'tie' when several share it, 'unlabelled' for no label."""
-    if emotion is None or not np.isfinite(emotion).all():
-        return "unlabelled"
-    top = np.flatnonzero(np.isclose(emotion, emotion.max()))
-    return names[int(top[0])] if len(top) == 1 else "tie"
 
 
 def assign_splits(clip_strata: dict[str, str], fractions: dict[str, float], seed: int) -> dict[str, str]:

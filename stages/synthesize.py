@@ -20,21 +20,16 @@ import torch
 from pipeline.io.gait_table import atomic_path, read_gaits, write_json_atomic, write_parquet_atomic
 from pipeline.generators.autoregressive.rollout import PlacementConfig
 from pipeline.generators.autoregressive.network import EmotiveGaitNet
-from pipeline.synth.plan import (
-    Trajectory,
-    build_plan,
+from pipeline.synth.novelty import (
     distinct_labels,
     l1_to_labels,
     nearest_training_path,
     novel_emotions,
-    onto,
-    piece_from,
-    recipe_json,
-    start_pose,
     training_nearest_distances,
     training_paths,
-    trajectories_from_params,
 )
+from pipeline.synth.plan import build_plan, recipe_json
+from pipeline.synth.trajectories import Trajectory, onto, piece_from, start_pose, trajectories_from_params
 from pipeline.viz.stick_figures import render_trajectories
 from pipeline.publish.table import synthetic_table
 from pipeline.core.skeleton import load_skeleton

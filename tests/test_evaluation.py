@@ -6,8 +6,8 @@ import numpy as np
 import torch
 
 from pipeline.ops.contacts import ContactConfig
-from pipeline.evaluation.autoregressive import EMOTION_NAMES, affect_summary, emotion_centroids, pose_errors, skating_speed
-from pipeline.split import dominant_emotion
+from pipeline.core.emotions import EMOTIONS, dominant_emotion
+from pipeline.evaluation.autoregressive import affect_summary, emotion_centroids, pose_errors, skating_speed
 from pipeline.generators.autoregressive.training import GaitTensors
 
 
@@ -35,11 +35,11 @@ def test_emotion_centroids_separate_the_real_labelled_gaits(annotated):
     positions = torch.from_numpy(arrays["positions"][labelled])
     low, high = torch.full((18,), -1e3), torch.full((18,), 1e3)
     summary = affect_summary(positions, low, high, torch.ones(18))
-    dominant = [dominant_emotion(arrays["emotion"][i], EMOTION_NAMES) for i in labelled]
+    dominant = [dominant_emotion(arrays["emotion"][i], EMOTIONS) for i in labelled]
     centroids = emotion_centroids(summary, dominant)
     assert centroids.shape == (4, 18) and bool(torch.isfinite(centroids).all())
     nearest = torch.cdist(summary.double(), centroids.double()).argmin(-1)
-    intended = torch.tensor([EMOTION_NAMES.index(d) for d in dominant])
+    intended = torch.tensor([EMOTIONS.index(d) for d in dominant])
     assert float((nearest == intended).double().mean()) > 0.5  # the real emotions differ in these features
 
 

@@ -11,8 +11,9 @@ import torch
 
 from pipeline.evaluation.autoregressive import constant_velocity, pose_errors, straight_path, turn_path, zero_velocity
 from pipeline.io.files import write_bytes
-from pipeline.generators.autoregressive.rollout import PlacementConfig, Seeds, generate, lateral_deviation, place_paths, stance_step
+from pipeline.generators.autoregressive.rollout import PlacementConfig, Seeds, generate, place_paths, stance_step
 from pipeline.generators.autoregressive.network import FOOT_JOINTS, EmotiveGaitNet, GeneratorConfig, LossWeights, generator_losses
+from pipeline.ops.geometry import distance_to_polyline
 from pipeline.ops.quaternion import euler_to_quat, qangle, qnormalize, quat_to_euler
 from pipeline.generators.autoregressive.training import (
     GaitTensors,
@@ -150,7 +151,7 @@ def test_paths_start_at_the_seed_and_point_its_way(gaits):
     assert torch.allclose(torch.atan2(direction[:, 0], direction[:, 1]), travel, atol=1e-4)
     # lateral deviation of points on the path is zero, of a point 1 m aside is 1 m
     on = paths[:, None, 0] + 0.3 * direction[:, None] / 10.0
-    assert torch.allclose(lateral_deviation(on, paths), torch.zeros(6, 1), atol=1e-5)
+    assert torch.allclose(distance_to_polyline(on, paths), torch.zeros(6, 1), atol=1e-5)
 
 
 def test_root_follows_a_turning_path_when_the_network_walks(gaits, offsets, skeleton):
@@ -171,7 +172,7 @@ def test_root_follows_a_turning_path_when_the_network_walks(gaits, offsets, skel
     root = out.positions[:, :, 0, [0, 2]]
     travelled = torch.linalg.vector_norm(root[:, 1:] - root[:, :-1], dim=-1).sum(-1)
     assert torch.allclose(travelled, torch.full((4,), 199 * 1.3 / 30), rtol=1e-4)
-    deviation = lateral_deviation(root, paths)
+    deviation = distance_to_polyline(root, paths)
     assert float(deviation.max()) < 0.5
     assert float(deviation[:, -30:].max()) < 0.05  # back on the path after the turn
 

@@ -7,8 +7,8 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
+from pipeline.core.emotions import EMOTIONS
 from pipeline.io.files import read_meta
-from pipeline.io.gait_table import EMOTIONS
 from tests.conftest import MOCAP
 
 SOURCES = {"bandai_namco_motiondataset", "cmu_bvh11", "cmu_iclone", "pymo_demo", "bvh_python_tests"}

@@ -8,22 +8,14 @@ import math
 import numpy as np
 import pytest
 
+import torch
+
 from pipeline.annotate.annotation import rebuild_clips
-from pipeline.synth.plan import (
-    arc_lengths,
-    build_plan,
-    frame_emotions,
-    local_frame,
-    nearest_training_path,
-    novel_emotions,
-    piece_from,
-    training_paths,
-    trajectories_from_params,
-    trajectory_points,
-    transition_rounds,
-    travel_direction,
-)
+from pipeline.ops.geometry import arc_lengths, to_local_frame, travel_direction, unit_direction
+from pipeline.synth.novelty import nearest_training_path, novel_emotions, training_paths
+from pipeline.synth.plan import build_plan, frame_emotions, transition_rounds
 from pipeline.synth.synthesis import copied_frames
+from pipeline.synth.trajectories import TRAVEL_FRAMES, piece_from, trajectories_from_params, trajectory_points
 from stages.common import load_params
 
 PARAMS = load_params()["synthesize"]
@@ -33,7 +25,8 @@ def test_an_arc_keeps_its_radius_and_a_corner_turns():
     points = trajectory_points([[math.pi * 2, 0.5, 0.5]])  # a half circle of radius 2 to the left
     centre = np.array([2.0, 0.0])
     assert np.allclose(np.linalg.norm(points - centre, axis=-1), 2.0, atol=1e-3)
-    assert np.allclose(points[-1], [4.0, 0.0], atol=1e-2) and abs(arc_lengths(points)[-1] - 2 * math.pi) < 1e-2
+    assert np.allclose(points[-1], [4.0, 0.0], atol=1e-2)
+    assert abs(float(arc_lengths(torch.from_numpy(points))[-1]) - 2 * math.pi) < 1e-2
     corner = trajectory_points([[2, 0, 0], [90], [2, 0, 0]])
     assert np.allclose(corner[-1], [2.0, 2.0], atol=1e-6)  # +x is the left
     piece = piece_from(corner, 1.02, 3.0)  # starts at the point at or before 1.02 m: the one at 1 m
@@ -87,8 +80,9 @@ def test_trajectory_novelty_rejects_a_training_path_and_accepts_the_planned_shap
     least, threshold = novelty["min_compared_m"], novelty["min_mean_distance_m"]
     # a training clip's own path, in its start frame, is found at distance ~0: the test can fail
     cid, (clip, _) = next((c, v) for c, v in rebuild_clips(clip_ids, starts, arrays["root_path"], 60).items()
-                          if arc_lengths(v[0])[-1] > 5)
-    own = local_frame(clip, clip[0], travel_direction(clip))
+                          if float(arc_lengths(torch.from_numpy(v[0]))[-1]) > 5)
+    path = torch.from_numpy(clip.astype(np.float64))
+    own = to_local_frame(path, unit_direction(float(travel_direction(path, TRAVEL_FRAMES))), path[0]).numpy()
     assert nearest_training_path(own, paths, least)["distance_m"] < 1e-6
     assert nearest_training_path(own, paths, least, exclude_clip=cid)["clip_id"] != cid
     straight = nearest_training_path(trajectory_points([[12, 0, 0]]), paths, least)

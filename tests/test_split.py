@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from pipeline.io.gait_table import EMOTIONS
-from pipeline.split import assign_splits, dominant_emotion, split_report
+from pipeline.core.emotions import EMOTIONS, dominant_emotion
+from pipeline.split import assign_splits, split_report
 
 FRACTIONS = {"train": 0.8, "val": 0.1, "test": 0.1}
 

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cache, cached_property
 from pathlib import Path
 
 import numpy as np
 import yaml
+
+CANONICAL_SKELETON = Path(__file__).resolve().parents[2] / "manifests" / "skeleton.yaml"
 
 
 @dataclass(frozen=True)
@@ -53,3 +55,10 @@ def load_skeleton(path: str | Path) -> Skeleton:
     leg = tuple((names.index(a), names.index(b)) for a, b in doc["leg_bones"])
     feet = tuple(names.index(n) for n in doc["foot_joints"])
     return Skeleton(names, parents, offsets, leg, feet)
+
+
+@cache
+def canonical_skeleton() -> Skeleton:
+    """The canonical skeleton, loaded once: for code that needs joint indices without being handed a Skeleton
+    (the generator's network takes its heel and toe joints from here, by name)."""
+    return load_skeleton(CANONICAL_SKELETON)

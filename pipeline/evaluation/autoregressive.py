@@ -17,22 +17,21 @@ from dataclasses import dataclass, replace
 import numpy as np
 import torch
 
+from pipeline.core.emotions import EMOTIONS
 from pipeline.ops.contacts import ContactConfig, foot_contacts
 from pipeline.ops.features import affective_features
+from pipeline.ops.geometry import distance_to_polyline
 from pipeline.generators.autoregressive.rollout import (
     Generated,
     PlacementConfig,
     Seeds,
     generate,
-    lateral_deviation,
     place_paths,
     prefix_of,
 )
 from pipeline.generators.autoregressive.network import FOOT_JOINTS, EmotiveGaitNet, travel_frame_positions
 from pipeline.ops.quaternion import qangle, qconj, qmul, qnormalize
 from pipeline.generators.autoregressive.training import GaitTensors
-
-EMOTION_NAMES = ("happy", "sad", "angry", "neutral")
 
 
 # --- Table 1 ----------------------------------------------------------------------------------------------
@@ -155,7 +154,7 @@ def rollout_figures(rollout: Rollout, fps: float, contacts: ContactConfig, real_
     root = g.positions[:, :, 0, [0, 2]]
     skate, contact_fraction = skating_speed(g.positions, fps, contacts)
     rotation_change = torch.rad2deg(qangle(g.rotations[:, 1:], g.rotations[:, :-1])).numpy()  # deg / frame
-    deviation = lateral_deviation(root, rollout.path)
+    deviation = distance_to_polyline(root, rollout.path)
     last = speed[:, -50:].mean(-1)
     return {
         "finite": bool(torch.isfinite(g.positions).all()),
@@ -181,9 +180,9 @@ def affect_summary(positions: torch.Tensor, low: torch.Tensor, high: torch.Tenso
 
 
 def emotion_centroids(summaries: torch.Tensor, dominant: Sequence[str]) -> torch.Tensor:
-    """(4, 18) mean summary per emotion (EMOTION_NAMES order) over the gaits whose dominant emotion it is."""
+    """(4, 18) mean summary per emotion (EMOTIONS order) over the gaits whose dominant emotion it is."""
     rows = []
-    for name in EMOTION_NAMES:
+    for name in EMOTIONS:
         idx = [i for i, d in enumerate(dominant) if d == name]
         rows.append(summaries[idx].mean(0) if idx else torch.full_like(summaries[0], float("nan")))
     return torch.stack(rows)
@@ -197,7 +196,7 @@ def expressiveness(model: EmotiveGaitNet, seeds: Seeds, centroids: torch.Tensor,
     same, other, hits, total = [], [], 0, 0
     paths = place_paths(straight_path(), seeds)
     per_emotion = {}
-    for k, name in enumerate(EMOTION_NAMES):
+    for k, name in enumerate(EMOTIONS):
         target = torch.zeros(len(seeds), steps, 4)
         target[..., k] = 1.0
         g = generate(model, seeds, paths, target, offsets, parents, placement)
@@ -242,7 +241,7 @@ def transitions(model: EmotiveGaitNet, seeds: Seeds, centroids: torch.Tensor, of
             steps_up = projection[:, 1:] - projection[:, :-1]
             monotone.append((steps_up > 0).all(-1))
             rises.append(projection[:, -1] - projection[:, 0])
-            pairs[f"{EMOTION_NAMES[a]}->{EMOTION_NAMES[b]}"] = {
+            pairs[f"{EMOTIONS[a]}->{EMOTIONS[b]}"] = {
                 "monotone_fraction": round(float((steps_up > 0).all(-1).double().mean()), 4),
                 "mean_projection_by_block": [round(float(v), 4) for v in projection.mean(0)]}
     mono, rise = torch.cat(monotone), torch.cat(rises)

@@ -12,9 +12,9 @@ import numpy as np
 import pyarrow as pa
 import torch
 
+from pipeline.core.emotions import EMOTIONS, dominant_emotion
 from pipeline.core.skeleton import Skeleton
 from pipeline.evaluation.autoregressive import (
-    EMOTION_NAMES,
     affect_summary,
     emotion_centroids,
     expressiveness,
@@ -28,7 +28,6 @@ from pipeline.generators.autoregressive.network import EmotiveGaitNet
 from pipeline.generators.autoregressive.rollout import PlacementConfig, Seeds
 from pipeline.generators.autoregressive.training import GaitTensors
 from pipeline.ops.contacts import ContactConfig
-from pipeline.split import dominant_emotion
 
 
 @dataclass(frozen=True)
@@ -62,7 +61,7 @@ def evaluate_generators(table: pa.Table, arrays: dict[str, np.ndarray], models: 
     content = np.array(table.column("content").to_pylist())
     clip_ids = table.column("clip_id").to_pylist()
     labelled = ~np.isnan(arrays["emotion"]).any(-1)
-    dominant = [dominant_emotion(None if not labelled[i] else arrays["emotion"][i], EMOTION_NAMES)
+    dominant = [dominant_emotion(None if not labelled[i] else arrays["emotion"][i], EMOTIONS)
                 for i in range(len(split))]
     full = models["full"]
     low, high, scale = full.affective_low, full.affective_high, full.affective_std
@@ -108,7 +107,7 @@ def evaluate_generators(table: pa.Table, arrays: dict[str, np.ndarray], models: 
     test_lab = np.flatnonzero((split == "test") & labelled)
     test_summary = affect_summary(torch.from_numpy(arrays["positions"][test_lab]), low, high, scale)
     nearest = torch.cdist(test_summary.double(), centroids.double()).argmin(-1)
-    intended = torch.tensor([EMOTION_NAMES.index(dominant[i]) for i in test_lab])
+    intended = torch.tensor([EMOTIONS.index(dominant[i]) for i in test_lab])
     report["emotion_reference"] = {
         "train_labelled_gaits": int(len(train_lab)), "test_labelled_gaits": int(len(test_lab)),
         "real_test_nearest_centroid_accuracy": round(float((nearest == intended).double().mean()), 4)}

@@ -18,13 +18,12 @@ from typing import Any
 import numpy as np
 import torch
 
+from pipeline.ops.geometry import to_y_up
 from pipeline.ops.kinematics import forward_kinematics, rotations_from_bvh_form
 from pipeline.ops.quaternion import euler_to_quat, matrix_to_quat, qbetween, qconj, qfix, qmul, qrot
 from pipeline.io.readers.bvh import BvhClip
 from pipeline.core.skeleton import Skeleton
 from pipeline.io.manifests import AXES_TO_Y_UP
-
-DTYPE = torch.float32  # ample for mm-level positions; halves memory traffic
 
 
 class RetargetError(ValueError):
@@ -70,7 +69,7 @@ def bvh_point_positions(clips: Sequence[BvhClip], points: Sequence[str], root_of
     order = sorted(keep)
     remap = {j: k for k, j in enumerate(order)}
     parents = [remap.get(skel.parents[j], -1) for j in order]
-    motion = np.concatenate([c.motion for c in clips], dtype=np.float32)
+    motion = np.concatenate([c.motion for c in clips], dtype=np.float32)  # ample for mm; halves memory traffic
     frames = motion.shape[0]
     offsets = np.stack([c.skeleton.offsets[order] for c in clips]).astype(np.float32)  # (clips, J, 3)
     if (offsets == offsets[0]).all():
@@ -108,7 +107,7 @@ def bvh_point_positions(clips: Sequence[BvhClip], points: Sequence[str], root_of
     selected = positions.index_select(-2, torch.tensor([remap[skel.index(p)] for p in points]))
     if up_axis == "+Y":
         return selected
-    return selected @ torch.tensor(AXES_TO_Y_UP[up_axis], dtype=DTYPE).T
+    return to_y_up(selected, AXES_TO_Y_UP[up_axis])
 
 
 def map_joints(point_names: Sequence[str], point_positions: torch.Tensor, joint_map: Mapping[str, Any],

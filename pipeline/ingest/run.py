@@ -22,9 +22,10 @@ from typing import Any
 import numpy as np
 import torch
 
+from pipeline.ops.geometry import ground_speed, heading_angle
 from pipeline.ops.kinematics import canonical_positions
 from pipeline.ingest.marker_trials import MarkerMotion, NotUsable, canonical_motion
-from pipeline.ops.quaternion import qfix, qrot
+from pipeline.ops.quaternion import qfix
 from pipeline.io.readers.bvh import BvhClip
 from pipeline.io.readers.c3d import C3dClip
 from pipeline.ops.resample import resample, window_starts
@@ -218,9 +219,7 @@ def _windows_from_points(manifest: SourceManifest, skeleton: Skeleton, items: li
     offsets = torch.from_numpy(skeleton.offsets).to(rotations.dtype)
     all_pos = canonical_positions(torch.cat([c[1] for c in clips]), torch.cat([c[2] for c in clips]), offsets,
                                   skeleton.parents)
-    root_rot = torch.cat([c[2][:, 0] for c in clips])
-    forward = qrot(root_rot, root_rot.new_tensor([0.0, 0.0, 1.0]).expand(root_rot.shape[0], 3))
-    all_heading = torch.atan2(forward[:, 0], forward[:, 2])  # body heading about +Y, 0 = facing +Z
+    all_heading = heading_angle(torch.cat([c[2][:, 0] for c in clips]))  # body heading about +Y, 0 = facing +Z
     sizes = np.cumsum([0] + [c[1].shape[0] for c in clips])
     windows = []
     for k, (item, root, rot, scale, leg_m) in enumerate(clips):
@@ -240,7 +239,7 @@ def _windows_of_clip(manifest: SourceManifest, skeleton: Skeleton, item: _Prepar
     pos[..., 1] -= floor
     root = root.clone()
     root[:, 1] -= floor
-    step = (root[1:, [0, 2]] - root[:-1, [0, 2]]).norm(dim=-1)
+    step = ground_speed(root)
     speed = float(step.mean()) * cfg.target_fps if step.numel() else 0.0
     if speed < cfg.min_gait_speed:
         _filter(rec, f"not a gait: mean horizontal root speed {speed:.2f} m/s < {cfg.min_gait_speed} m/s")

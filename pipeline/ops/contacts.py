@@ -18,6 +18,8 @@ from dataclasses import dataclass
 
 import torch
 
+from pipeline.ops.geometry import sliding_windows, wrap_phase
+
 CONTACT_POINTS = ("left_heel", "left_toe", "right_heel", "right_toe")
 
 
@@ -43,11 +45,8 @@ def median_filter(flags: torch.Tensor, frames: int) -> torch.Tensor:
     """Binary median filter along the time axis of (..., T, P) booleans, odd window, edges replicated."""
     if frames <= 1:
         return flags
-    half = frames // 2
-    x = flags.to(torch.float32).movedim(-2, -1)  # (..., P, T)
-    padded = torch.cat([x[..., :1].expand(*x.shape[:-1], half), x, x[..., -1:].expand(*x.shape[:-1], half)], -1)
-    votes = padded.unfold(-1, frames, 1).sum(-1)
-    return (votes > half).movedim(-1, -2)
+    votes = sliding_windows(flags.to(torch.float32).movedim(-2, -1), frames).sum(-1)  # (..., P, T)
+    return (votes > frames // 2).movedim(-1, -2)
 
 
 def foot_contacts(points: torch.Tensor, fps: float, cfg: ContactConfig = ContactConfig()) -> torch.Tensor:
@@ -130,10 +129,10 @@ def stepping_phase(frames: int, left_strikes: list[int], right_strikes: list[int
     t0, t1 = times[idx - 1], times[idx]
     v0, v1 = unwrapped[idx - 1], unwrapped[idx]
     theta = v0 + (t - t0) * (v1 - v0) / (t1 - t0)
-    return torch.remainder(theta, 2 * torch.pi)
+    return wrap_phase(theta)
 
 
 def phase_rate(theta: torch.Tensor) -> torch.Tensor:
     """ω^t = θ^t − θ^{t−1} wrapped to [0, 2π); ω^0 = ω^1. theta: (..., T)."""
-    step = torch.remainder(theta[..., 1:] - theta[..., :-1], 2 * torch.pi)
+    step = wrap_phase(theta[..., 1:] - theta[..., :-1])
     return torch.cat([step[..., :1], step], dim=-1)

@@ -11,6 +11,7 @@ from collections.abc import Sequence
 
 import torch
 
+from pipeline.ops.geometry import ground_speed, moving_average
 from pipeline.ops.kinematics import canonical_positions
 
 # The 18 affective features, indices in the canonical 21-joint numbering, in the paper's released order.
@@ -91,15 +92,6 @@ def body_heading(positions: torch.Tensor, left_hip: int = 1, right_hip: int = 5)
     return forward / torch.linalg.vector_norm(forward, dim=-1, keepdim=True).clamp_min(_EPS)
 
 
-def moving_average(x: torch.Tensor, frames: int) -> torch.Tensor:
-    """Centred moving average along the last axis, odd window, edges replicated; (..., T) -> (..., T)."""
-    if frames <= 1:
-        return x
-    half = frames // 2
-    padded = torch.cat([x[..., :1].expand(*x.shape[:-1], half), x, x[..., -1:].expand(*x.shape[:-1], half)], -1)
-    return padded.unfold(-1, frames, 1).mean(-1)
-
-
 def movement_features(positions: torch.Tensor, lowpass_frames: int) -> torch.Tensor:
     """Root movement features per frame: positions (..., T, 21, 3) -> (..., T, 5) in MOVEMENT_NAMES order.
 
@@ -111,7 +103,7 @@ def movement_features(positions: torch.Tensor, lowpass_frames: int) -> torch.Ten
     height = root[..., 1] - root[..., 1].mean(dim=-1, keepdim=True)
     ground = root[..., [0, 2]]
     tangent = ground[..., 1:, :] - ground[..., :-1, :]  # (..., T-1, 2)
-    step = torch.linalg.vector_norm(tangent, dim=-1)
+    step = ground_speed(root)
     speed = torch.cat([step[..., :1], step], dim=-1)
     tangent = torch.cat([tangent, tangent[..., -1:, :]], dim=-2)  # forward difference, last repeated
     heading = body_heading(positions)
@@ -122,19 +114,3 @@ def movement_features(positions: torch.Tensor, lowpass_frames: int) -> torch.Ten
     turn = torch.linalg.vector_norm(tangent[..., 1:, :] - tangent[..., :-1, :], dim=-1)
     curvature = torch.cat([turn[..., :1], turn], dim=-1)
     return torch.stack((height, speed, moving_average(speed, lowpass_frames), delta, curvature), dim=-1)
-
-
-def path_direction(root_positions: torch.Tensor, heading: torch.Tensor, frames: int,
-                   min_step: float = 1e-3) -> torch.Tensor:
-    """Direction of travel (..., T) in radians about +Y (0 = +Z): the mean ground displacement over a centred
-    window of ``frames`` (about one stride), so the pelvis' side-to-side sway does not swing it; the body heading
-    where the root barely moves (mean step < ``min_step`` m/frame). root_positions (..., T, 3), heading (..., T).
-
-    The generator's reference frame: it predicts the pelvis' rotation relative to this direction.
-    """
-    ground = root_positions[..., [0, 2]]
-    step = ground[..., 1:, :] - ground[..., :-1, :]
-    step = torch.cat([step, step[..., -1:, :]], dim=-2)
-    mean_x, mean_z = moving_average(step[..., 0], frames), moving_average(step[..., 1], frames)
-    moving = torch.sqrt(mean_x ** 2 + mean_z ** 2) > min_step
-    return torch.where(moving, torch.atan2(mean_x, mean_z), heading)

@@ -21,7 +21,8 @@ from pipeline.ops.contacts import phase_rate
 from pipeline.ops.features import movement_features, pose_affective_features
 from pipeline.generators.autoregressive.rollout import PlacementConfig, Seeds, generate, place_paths
 from pipeline.generators.autoregressive.network import EmotiveGaitNet
-from pipeline.synth.plan import Trajectory, frame_emotions, piece_from
+from pipeline.synth.plan import frame_emotions
+from pipeline.synth.trajectories import Trajectory, piece_from
 from pipeline.core.skeleton import Skeleton
 
 

@@ -9,7 +9,7 @@ One step of the network reads frame t of a gait and predicts frame t + 1:
     [h, s, δ; γ]                                 -> FC_root             -> FC_h, FC_s, FC_δ      -> ĥ, ŝ, δ̂
 
 q are the 20 non-root versors of the paper plus one for the pelvis, relative to the direction of travel
-(``pipeline.ops.features.path_direction``): the pelvis tilts, rolls and yaws about that direction through every
+(``pipeline.ops.geometry.path_direction``): the pelvis tilts, rolls and yaws about that direction through every
 stride, and a generated gait without that motion skates (measured on real test walks: freezing the pelvis'
 rotation relative to the heading triples the heel/toe speed during contact, 0.14 -> 0.41 m/s). The trajectory
 still owns the direction of travel; the network owns the pelvis relative to it. a are the 18 affective
@@ -37,17 +37,19 @@ from dataclasses import asdict, dataclass, field
 import torch
 from torch import nn
 
+from pipeline.core.emotions import EMOTIONS
+from pipeline.core.skeleton import canonical_skeleton
 from pipeline.ops.features import affective_features
+from pipeline.ops.geometry import unit_direction, wrap_angle_atan2
 from pipeline.ops.kinematics import canonical_positions
 from pipeline.ops.quaternion import qnormalize, qrot, quat_to_euler, yaw
 
 JOINTS = 21
 VERSORS = JOINTS  # the pelvis relative to the direction of travel + the 20 non-root joints
-EMOTIONS = 4
-CONDITION = EMOTIONS + 1  # emotion vector + "labelled" flag
+CONDITION = len(EMOTIONS) + 1  # emotion vector + "labelled" flag
 SCALARS = ("omega", "s", "kappa", "h", "delta")  # standardised per-frame scalars
 ROOT_FEATURES = ("h", "s", "delta")
-FOOT_JOINTS = (3, 4, 7, 8)  # left heel, left toe, right heel, right toe (manifests/skeleton.yaml)
+FOOT_JOINTS = canonical_skeleton().foot_joints  # heel and toe of each foot, by name in the canonical skeleton
 
 
 @dataclass(frozen=True)
@@ -193,7 +195,7 @@ def world_feet(pose: torch.Tensor, speed: torch.Tensor, height: torch.Tensor, ta
     travel-frame pose turned to that direction. So the foot term ties the root's speed to the legs' motion (a foot
     on the floor stays put only if the two agree) - what the paper's foot-contact loss is for."""
     direction = target["direction"]
-    step = speed[..., None] * torch.stack((torch.sin(direction), torch.cos(direction)), dim=-1)
+    step = speed[..., None] * unit_direction(direction)
     ground = target["start"][:, None, [0, 2]] + step.cumsum(dim=1)
     root = torch.stack((ground[..., 0], target["base_height"][:, None] + height, ground[..., 1]), dim=-1)
     turn = yaw(direction)[..., None, :].expand(*direction.shape, len(FOOT_JOINTS), 4)
@@ -222,7 +224,7 @@ def generator_losses(pred: dict[str, torch.Tensor], target: dict[str, torch.Tens
     base_height (B,) (see ``world_feet``). Sums over joints / features, means over gaits and frames. Root features
     are compared in standardised units (s is ~0.04 m/frame, δ ~0.3 rad)."""
     angle = quat_to_euler(pred["q"], "ZYX") - quat_to_euler(target["q"], "ZYX")
-    wrapped = torch.atan2(torch.sin(angle), torch.cos(angle))
+    wrapped = wrap_angle_atan2(angle)
     versor_norm = (torch.linalg.vector_norm(pred["q_raw"], dim=-1) - 1.0) ** 2
     motion = (wrapped ** 2).sum((-1, -2)).mean() + weights.versor * versor_norm.sum(-1).mean()
     predicted_pose = travel_frame_positions(pred["q"], offsets, parents)

@@ -37,8 +37,19 @@ import numpy as np
 import torch
 
 from pipeline.generators.autoregressive.network import FOOT_JOINTS, EmotiveGaitNet, condition_vectors
+from pipeline.ops.geometry import (
+    arc_lengths,
+    closest_arc,
+    direction_of,
+    from_local_frame,
+    heading_angle,
+    point_at_arc,
+    to_local_frame,
+    unit_direction,
+    wrap_angle,
+)
 from pipeline.ops.kinematics import canonical_positions
-from pipeline.ops.quaternion import qmul, qrot, yaw
+from pipeline.ops.quaternion import qmul, yaw
 from pipeline.generators.autoregressive.training import GaitTensors, extrapolated_phase, predicted_affective
 
 
@@ -82,7 +93,7 @@ class Seeds:
         return len(self.gaits)
 
     def travel_direction(self) -> torch.Tensor:
-        """(N,) direction of travel at the last prefix frame (features.path_direction, over the seed window)."""
+        """(N,) direction of travel at the last prefix frame (geometry.path_direction, over the seed window)."""
         return self.gaits.direction[:, -1]
 
 
@@ -106,55 +117,12 @@ class Generated:
     versors: torch.Tensor  # (N, S, 21, 4) the network's versors (pelvis relative to the direction of travel)
 
 
-def wrap_angle(a: torch.Tensor) -> torch.Tensor:
-    return torch.remainder(a + math.pi, 2 * math.pi) - math.pi
-
-
 def place_paths(shapes: torch.Tensor, seeds: Seeds) -> torch.Tensor:
     """Paths given in a local frame (K, 2) or (N, K, 2) as (x, z), starting at (0, 0) towards +z, moved to start at
     each seed's last root position and turned to its travel direction -> (N, K, 2) world (x, z)."""
     shapes = shapes.expand(len(seeds), *shapes.shape[-2:]) if shapes.dim() == 2 else shapes
-    angle = seeds.travel_direction()[:, None]
-    c, s = torch.cos(angle), torch.sin(angle)
-    x, z = shapes[..., 0], shapes[..., 1]
-    world = torch.stack((c * x + s * z, -s * x + c * z), dim=-1)  # +z turns to (sin α, cos α)
-    return world + seeds.gaits.root_position[:, -1, [0, 2]][:, None]
-
-
-def _closest_arc(points: torch.Tensor, paths: torch.Tensor, cumulative: torch.Tensor) -> torch.Tensor:
-    """Arc length (N,) along paths (N, K, 2) of the point closest to points (N, 2)."""
-    a, b = paths[:, :-1], paths[:, 1:]
-    ab = b - a
-    length2 = (ab * ab).sum(-1).clamp_min(1e-12)
-    u = (((points[:, None] - a) * ab).sum(-1) / length2).clamp(0.0, 1.0)
-    nearest = a + u[..., None] * ab
-    dist = torch.linalg.vector_norm(points[:, None] - nearest, dim=-1)
-    k = dist.argmin(-1)
-    rows = torch.arange(len(points))
-    return cumulative[rows, k] + u[rows, k] * torch.sqrt(length2[rows, k])
-
-
-def point_at_arc(paths: torch.Tensor, cumulative: torch.Tensor, arc: torch.Tensor) -> torch.Tensor:
-    """Points (N, 2) at arc length ``arc`` (N,) along paths; beyond the end the last segment is extended."""
-    k = torch.searchsorted(cumulative, arc[:, None]).squeeze(-1).clamp(1, paths.shape[1] - 1)
-    rows = torch.arange(len(arc))
-    a, b = paths[rows, k - 1], paths[rows, k]
-    seg = (cumulative[rows, k] - cumulative[rows, k - 1]).clamp_min(1e-9)
-    u = ((arc - cumulative[rows, k - 1]) / seg)[:, None]
-    return a + u * (b - a)
-
-
-def path_arcs(paths: torch.Tensor) -> torch.Tensor:
-    seg = torch.linalg.vector_norm(paths[:, 1:] - paths[:, :-1], dim=-1)
-    return torch.cat([torch.zeros_like(seg[:, :1]), seg.cumsum(-1)], dim=-1)
-
-
-def lateral_deviation(points: torch.Tensor, paths: torch.Tensor) -> torch.Tensor:
-    """Distance (..., S) of ground points (N, S, 2) to the polyline paths (N, K, 2)."""
-    a, b = paths[:, None, :-1], paths[:, None, 1:]
-    ab = b - a
-    u = (((points[:, :, None] - a) * ab).sum(-1) / (ab * ab).sum(-1).clamp_min(1e-12)).clamp(0.0, 1.0)
-    return torch.linalg.vector_norm(points[:, :, None] - (a + u[..., None] * ab), dim=-1).min(-1).values
+    along = unit_direction(seeds.travel_direction()[:, None])  # +z turns to (sin α, cos α)
+    return from_local_frame(shapes, along, seeds.gaits.root_position[:, -1, [0, 2]][:, None])
 
 
 def _root_relative(root_rotation: torch.Tensor, joint_versors: torch.Tensor, height: torch.Tensor,
@@ -196,7 +164,7 @@ def generate(model: EmotiveGaitNet, seeds: Seeds, paths: torch.Tensor, emotions:
     frames = seed.frames(0, prefix)
     pred, hidden = model(frames)
     current = {k: v[:, -1] for k, v in pred.items()}
-    cumulative = path_arcs(paths)
+    cumulative = arc_lengths(paths)
     ground = seed.root_position[:, -1, [0, 2]].clone()
     previous_step = ground - seed.root_position[:, -2, [0, 2]]
     travel = seeds.travel_direction()
@@ -212,24 +180,23 @@ def generate(model: EmotiveGaitNet, seeds: Seeds, paths: torch.Tensor, emotions:
     max_drift = math.radians(cfg.max_drift_deg)
     for t in range(steps):
         speed = current["s"].clamp(0.0, cfg.max_speed_m_s / cfg.fps)
-        arc = _closest_arc(ground, paths, cumulative)
+        arc = closest_arc(ground, paths, cumulative)
         target = point_at_arc(paths, cumulative, arc + cfg.lookahead_m)
-        wanted = torch.atan2(target[:, 0] - ground[:, 0], target[:, 1] - ground[:, 1])
+        wanted = direction_of(target[:, 0] - ground[:, 0], target[:, 1] - ground[:, 1])
         travel = travel + wrap_angle(wanted - drift - travel).clamp(-max_turn, max_turn)
-        along = torch.stack((torch.sin(travel), torch.cos(travel)), dim=-1)
+        along = unit_direction(travel)
         delta = current["delta"].clamp(0.0, math.pi)
         root_rotation = qmul(yaw(travel), current["q"][:, 0])
-        forward = qrot(root_rotation, root_rotation.new_tensor([0.0, 0.0, 1.0]).expand(len(travel), 3))
-        heading = torch.atan2(forward[:, 0], forward[:, 2])
+        heading = heading_angle(root_rotation)
         rotations = torch.cat([root_rotation[:, None], current["q"][:, 1:]], dim=1)
         local = _root_relative(root_rotation, current["q"][:, 1:], base_height + current["h"], offsets, parents)
         nominal = speed[:, None] * along  # the step the predicted root speed asks for
         if stance_foot:
             step = stance_step(previous_feet, local[:, feet], cfg.stance_softness_m, cfg.max_speed_m_s / cfg.fps)
             previous_feet = local[:, feet]
-            relative = torch.stack((along[:, 1] * step[:, 0] - along[:, 0] * step[:, 1], (along * step).sum(-1)), -1)
+            relative = to_local_frame(step, along)  # (sideways, ahead) of the travel direction
             mean_step = mean_step + (relative - mean_step) / (cfg.drift_seconds * cfg.fps)
-            drift = torch.atan2(mean_step[:, 0], mean_step[:, 1].abs().clamp_min(1e-6)).clamp(-max_drift, max_drift)
+            drift = direction_of(mean_step[:, 0], mean_step[:, 1].abs().clamp_min(1e-6)).clamp(-max_drift, max_drift)
         else:
             step = nominal
         ground = ground + step

@@ -24,7 +24,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from pipeline.ops.features import affective_features, path_direction
+from pipeline.ops.features import affective_features
+from pipeline.ops.geometry import path_direction, wrap_phase
 from pipeline.io.files import sha256_bytes
 from pipeline.generators.autoregressive.network import (
     FOOT_JOINTS,
@@ -63,7 +64,7 @@ class GaitTensors:
     """What the generator trains on, per gait (N, T, ...), float32."""
 
     q: torch.Tensor  # (N, T, 21, 4): the pelvis relative to the direction of travel, then the 20 local versors
-    direction: torch.Tensor  # (N, T) direction of travel, rad about +Y (features.path_direction)
+    direction: torch.Tensor  # (N, T) direction of travel, rad about +Y (geometry.path_direction)
     root_rotation: torch.Tensor  # (N, T, 4)
     root_position: torch.Tensor  # (N, T, 3)
     feet: torch.Tensor  # (N, T, 4, 3) world heel/toe positions (generator.FOOT_JOINTS)
@@ -121,7 +122,7 @@ def extrapolated_phase(theta: torch.Tensor, omega: torch.Tensor, steps: int) -> 
     """
     rate = omega[:, 1:].mean(-1, keepdim=True) if omega.shape[1] > 1 else omega[:, :1]
     k = torch.arange(1, steps + 1, dtype=theta.dtype, device=theta.device)
-    return torch.remainder(theta[:, -1:] + rate * k, 2 * math.pi), rate.expand(-1, steps)
+    return wrap_phase(theta[:, -1:] + rate * k), rate.expand(-1, steps)
 
 
 def predicted_affective(q: torch.Tensor, offsets: torch.Tensor, parents: Sequence[int]) -> torch.Tensor:

@@ -39,8 +39,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import torch
 
 from pipeline.io.manifests import AXES_TO_Y_UP
+from pipeline.ops.geometry import to_y_up
 
 UNIT_SCALE_M = {"mm": 0.001, "cm": 0.01, "m": 1.0}
 _PROCESSORS = {84: "Intel", 85: "DEC", 86: "MIPS"}
@@ -103,8 +105,8 @@ def positions_m_y_up(positions: np.ndarray, unit_scale_m: float, up_axis: str) -
     """File-unit positions (..., 3) in the file's axes -> metres, Y up (pipeline.io.manifests.AXES_TO_Y_UP)."""
     if up_axis not in AXES_TO_Y_UP:
         raise ValueError(f"unknown up axis {up_axis!r}; known: {sorted(AXES_TO_Y_UP)}")
-    return (np.asarray(positions, dtype=np.float64) * unit_scale_m) @ np.asarray(AXES_TO_Y_UP[up_axis],
-                                                                                 dtype=np.float64).T
+    metres = torch.from_numpy(np.asarray(positions, dtype=np.float64) * unit_scale_m)
+    return to_y_up(metres, AXES_TO_Y_UP[up_axis]).numpy()
 
 
 def read_c3d(path: str | Path, data: bytes | None = None) -> C3dClip:

@@ -27,32 +27,39 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from pipeline.evaluation.autoregressive import turn_path  # noqa: E402
+from pipeline.io.files import write_json  # noqa: E402
 from pipeline.io.gait_table import read_gaits  # noqa: E402
-from pipeline.generators.autoregressive.rollout import PlacementConfig, Seeds, generate, place_paths  # noqa: E402
+from pipeline.generators.autoregressive.rollout import Seeds, generate, place_paths  # noqa: E402
 from pipeline.generators.autoregressive.network import EmotiveGaitNet, GeneratorConfig  # noqa: E402
 from pipeline.core.skeleton import load_skeleton  # noqa: E402
 from pipeline.generators.autoregressive.training import load_checkpoint  # noqa: E402
 from stages.common import SKELETON, load_params  # noqa: E402
-from stages.synthesize import Synthesis  # noqa: E402
+from pipeline.generators.autoregressive.family import AutoregressiveFamily  # noqa: E402
+from pipeline.synth.synthesis import SynthesisConfig, SynthesisPlan, synthesize  # noqa: E402
+from stages.configs import annotate_config, placement_config  # noqa: E402
 
 OUT = REPO / "benchmarks" / "out" / "generate.json"
 GAITS = REPO / "data" / "split" / "gaits.parquet"
 MODEL = REPO / "data" / "models" / "full.pt"
 
 
-def synthesis_figures(model: EmotiveGaitNet, params: dict, repeats: int) -> dict:
+def synthesis_figures(model_path: Path, params: dict, repeats: int) -> dict:
     """The synthesize stage's work on the whole plan (generation + annotation, no file writes), timed."""
-    work = Synthesis.prepare(params, GAITS)
-    frames = int(params["ingest"]["window"])
+    cfg = SynthesisConfig.from_dict(params["synthesize"], frames=int(params["ingest"]["window"]))
+    work = SynthesisPlan.prepare(*read_gaits(GAITS), cfg)
+    skeleton = load_skeleton(SKELETON)
+    family = AutoregressiveFamily.from_checkpoint(model_path, work.arrays, work.row_of, skeleton,
+                                                  placement_config(params), int(params["train"]["prefix"]))
+    trajectories = {t.id: t for t in work.trajectories}
     times = []
     for _ in range(repeats):
         start = time.perf_counter()
-        work.run(model)
+        synthesize(family, work.plan, work.emotions, trajectories, skeleton, annotate_config(params), cfg)
         times.append(time.perf_counter() - start)
     seconds = statistics.median(times)
-    return {"gaits": len(work.plan), "frames_per_gait": frames, "seconds": round(seconds, 2),
+    return {"gaits": len(work.plan), "frames_per_gait": cfg.frames, "seconds": round(seconds, 2),
             "seconds_all": [round(t, 2) for t in times], "target_seconds": 60,
-            "agent_frames_per_s": round(len(work.plan) * frames / seconds, 1)}
+            "agent_frames_per_s": round(len(work.plan) * cfg.frames / seconds, 1)}
 
 
 def main() -> dict:
@@ -78,7 +85,7 @@ def main() -> dict:
         source = "untrained, params.yaml train.model sizes"
     table, arrays = read_gaits(GAITS)
     test = np.flatnonzero(np.array(table.column("split").to_pylist()) == "test")
-    placement = PlacementConfig.from_params(params.get("generate") or {}, params["ingest"]["target_fps"])
+    placement = placement_config(params)
     prefix = int(params["train"]["prefix"])
     results = []
     for n in args.agents:
@@ -98,12 +105,10 @@ def main() -> dict:
         results.append({"agents": n, "steps": args.steps, "seconds": round(seconds, 4),
                         "agent_frames_per_s": round(n * args.steps / seconds, 1)})
     out = {"model": source, "threads": args.threads, "torch": torch.__version__, "results": results}
-    if args.synthesis_repeats:
-        out["synthesis"] = synthesis_figures(model, params, args.synthesis_repeats)
-    OUT.parent.mkdir(parents=True, exist_ok=True)
-    text = json.dumps(out, indent=2)
-    OUT.write_text(text + "\n")
-    print(text)
+    if args.synthesis_repeats and MODEL.exists():
+        out["synthesis"] = synthesis_figures(MODEL, params, args.synthesis_repeats)
+    write_json(out, OUT, sort_keys=False)
+    print(json.dumps(out, indent=2))
     return out
 
 

@@ -33,7 +33,6 @@ from __future__ import annotations
 import argparse
 import fnmatch
 import gc
-import hashlib
 import json
 import os
 import platform
@@ -51,6 +50,7 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from pipeline.ingest.run import IngestConfig, ingest_chunk, missing_data_message, plan_chunks  # noqa: E402
+from pipeline.io.files import sha256_bytes  # noqa: E402
 from pipeline.io.readers.bvh import read_bvh  # noqa: E402
 from pipeline.core.skeleton import load_skeleton  # noqa: E402
 from pipeline.io.manifests import SourceManifest, load_manifests  # noqa: E402
@@ -130,7 +130,7 @@ def read_parse_breakdown(chunks: list, cfg: IngestConfig) -> dict:
             path = cfg.mocap_root / manifest.name / rel
             if path.is_file():
                 data = path.read_bytes()
-                hashlib.sha256(data).hexdigest()
+                sha256_bytes(data)  # the screen's pin check
                 frames += read_bvh(path, data).frames
     secs = time.perf_counter() - start
     return {"what": "read bytes + sha256 + read_bvh only (one pass, same files)", "source_frames": frames,

@@ -11,9 +11,6 @@ from collections.abc import Sequence
 
 import numpy as np
 
-# Transitional, until they import it from pipeline.core.emotions: stages/split.py and pipeline/audit/metrics.py
-# still import dominant_emotion from here.
-from pipeline.core.emotions import dominant_emotion  # noqa: F401
 
 SPLITS = ("train", "val", "test")
 

@@ -9,6 +9,7 @@ from pipeline.annotate.annotation import ANNOTATION_META, annotate_windows, anno
 from pipeline.core.skeleton import load_skeleton
 from pipeline.io.files import write_json, write_parquet
 from pipeline.io.gait_table import read_gaits, with_arrays
+from pipeline.ops.contacts import CONTACT_POINTS
 from pipeline.viz.stick_figures import annotation_examples
 from stages.common import REPO, SKELETON, load_params
 from stages.configs import annotate_config
@@ -30,7 +31,7 @@ def main(params_path: Path | None = None, in_gaits: Path = IN_GAITS, out_gaits: 
     write_parquet(with_arrays(table, annotations, ANNOTATION_META), out_gaits)
     report = annotation_report(table, clips)
     write_json(report, out_report)
-    annotation_examples(table, arrays, annotations, skeleton, cfg.fps, out_plot)
+    annotation_examples(table, arrays, annotations, skeleton, CONTACT_POINTS, cfg.fps, out_plot)
     print(f"annotate: {report['gaits']} gaits from {report['clips']} clips; walk stance fraction median "
           f"{report['stance_fraction']['walk_median']:.2f}; {len(report['clips_without_phase'])} clips without phase")
     return report

@@ -7,8 +7,9 @@ from pathlib import Path
 import pyarrow as pa
 
 from pipeline.io.files import write_json, write_parquet
-from pipeline.io.gait_table import EMOTIONS, read_gaits
-from pipeline.split import assign_splits, dominant_emotion, split_report
+from pipeline.core.emotions import EMOTIONS, dominant_emotion
+from pipeline.io.gait_table import read_gaits
+from pipeline.split import assign_splits, split_report
 from stages.common import REPO, load_params
 
 IN_GAITS = REPO / "data" / "annotated" / "gaits.parquet"

@@ -3,7 +3,7 @@ synthetic gaits look like their intended emotion, and whether they help an emoti
 
 Works on any published directory (``pipeline.dataset``). Everything here returns numbers or draws figures; the
 `audit` command (stages/audit.py) writes them with a self-contained HTML page. A gait's label for counting and
-classifying is its dominant emotion (``split.dominant_emotion``: ties are reported, never broken). The
+classifying is its dominant emotion (``core.emotions.dominant_emotion``: ties are reported, never broken). The
 classifier's input is a per-gait summary: the mean and standard deviation over the frames of the affective and
 movement features.
 """
@@ -23,7 +23,7 @@ import torch
 
 from pipeline.io.files import schema_meta
 from pipeline.dataset import directory_schema, load_dataframe, verify
-from pipeline.split import dominant_emotion
+from pipeline.core.emotions import dominant_emotion
 
 COLUMNS = ("gait_id", "kind", "split", "source", "label_method", "emotion", "emotion_per_frame", "contacts", "phase",
            "affective", "movement", "source_file", "source_sha256", "t_start", "t_end", "checkpoint_sha256",

@@ -4,7 +4,7 @@
 column (and its ``emotion_order`` metadata), the generator's condition, the synthesis plan's recipes and the
 published dataset.
 
-This module must never know where labels come from (sources, label rules, files) or how they are used.
+This module must never know which source or rule labels a gait, or how labels are used.
 """
 
 from __future__ import annotations
@@ -14,6 +14,10 @@ from collections.abc import Sequence
 import numpy as np
 
 EMOTIONS = ("happy", "sad", "angry", "neutral")
+
+# How a label was obtained (the ``label_method`` column; null: unlabelled, no emotion is ever guessed).
+SOURCE_LABEL_METHODS = ("actor_intended", "style_mapping")  # real gaits: the actor's stated intent, a style word
+GENERATOR_LABEL_METHOD = "generator_condition"  # synthetic gaits: the condition they were generated with
 
 
 def dominant_emotion(emotion: np.ndarray | None, names: Sequence[str]) -> str:

@@ -13,6 +13,7 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from pipeline.io.files import save_figure  # noqa: E402
+from pipeline.ops.geometry import to_local_frame, travel_direction, unit_direction  # noqa: E402
 from pipeline.viz.stick_figures import Motion, render_filmstrip  # noqa: E402
 
 
@@ -93,12 +94,10 @@ def plot_rollouts(rollouts: dict, report: dict, path: Path) -> None:
             root = r.generated.positions[:, :, 0][..., [0, 2]]
             start = r.path[:, :1]
             # every agent in its own start frame (facing +z), the path drawn as far as the agents got
-            angle = torch.atan2(r.path[:, 1, 0] - r.path[:, 0, 0], r.path[:, 1, 1] - r.path[:, 0, 1])[:, None]
-            c, s = torch.cos(angle), torch.sin(angle)
+            along = unit_direction(travel_direction(r.path, 1)[:, None])
 
             def local(points):
-                d = points - start
-                return torch.stack((c * d[..., 0] - s * d[..., 1], s * d[..., 0] + c * d[..., 1]), dim=-1).numpy()
+                return to_local_frame(points, along, start).numpy()
 
             reach = float(torch.linalg.vector_norm(root - start, dim=-1).max()) + 1.0
             target = local(r.path)

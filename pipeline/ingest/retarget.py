@@ -1,6 +1,6 @@
 """Retargeting: a source skeleton's motion onto the canonical 21-joint skeleton.
 
-Steps (DESIGN.md §2): source joint positions by forward kinematics -> the manifest's joint map picks (or
+Steps: source joint positions by forward kinematics -> the manifest's joint map picks (or
 combines, for virtual joints) the source points that sit at each canonical joint -> each canonical
 bone keeps its source *direction* and takes its canonical *length* -> per-bone local rotations relative
 to the canonical rest pose (shortest arc in the parent bone's frame, so no twist is invented) -> the

@@ -7,10 +7,10 @@ found. This module knows files, pins and readers; never what the motion in a fil
 
 from __future__ import annotations
 
-import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 
+from pipeline.io.files import sha256_bytes
 from pipeline.io.manifests import SourceManifest
 from pipeline.io.readers.bvh import BvhClip, BvhError, read_bvh
 from pipeline.io.readers.c3d import C3dClip, C3dError, read_c3d
@@ -40,7 +40,7 @@ def screen_file(manifest: SourceManifest, source_dir: Path, rel: str, pinned: st
                         f"missing: the manifest pins {rel} (sha256 {pinned}) but no file is at {path}; "
                         f"obtain it from {manifest.upstream_url(rel)}")
     data = path.read_bytes()
-    sha256 = hashlib.sha256(data).hexdigest()
+    sha256 = sha256_bytes(data)
     if pinned is None:
         return Screened(rel, path, sha256, None,
                         f"not pinned: the manifest lists no sha256 for this file (found {sha256}); pin it to ingest it")

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import difflib
 import fnmatch
-import hashlib
 import os
 import re
 import types
@@ -24,13 +23,15 @@ import yaml
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, model_validator
 from pydantic_core import PydanticCustomError
 
+from pipeline.core.emotions import SOURCE_LABEL_METHODS
+from pipeline.io.files import sha256_file
+
 AXES_TO_Y_UP = {
     # Rows map source (x, y, z) to canonical (x, y, z), right-handed, Y up.
     "+Y": ((1, 0, 0), (0, 1, 0), (0, 0, 1)),
     "+Z": ((1, 0, 0), (0, 0, 1), (0, -1, 0)),
 }
 FORMATS = ("bvh", "c3d")  # the readers under pipeline/io/readers
-LABEL_METHODS = ("actor_intended", "style_mapping")  # how a source's emotion labels were made
 CONTACT_POINTS = ("left_heel", "left_toe", "right_heel", "right_toe")  # a marker set's `contacts` keys
 PELVIS_POINTS = ("left_asis", "right_asis", "sacrum")  # a marker set's `pelvis` keys
 WEIGHT_TOLERANCE = 1e-9  # affine weights must sum to 1 within this (as retargeting and the marker rules check)
@@ -221,7 +222,7 @@ class PinnedFile(_Schema):
 class EmotionRule(_Schema):
     when: dict[str, str]
     emotion: Annotated[list[float], AfterValidator(_emotion)]
-    label_method: Literal[LABEL_METHODS]
+    label_method: Literal[SOURCE_LABEL_METHODS]
 
 
 class LabelRule(_Schema):
@@ -654,8 +655,7 @@ def pinned_files(manifest_path: str | Path, mocap_root: Path) -> list[FileEntry]
         raise ValueError(f"{manifest_path}: expected the source folder {folder}, found no such folder")
     entries = []
     for rel in source_files(folder, doc["globs"]):
-        with open(folder / rel, "rb") as fh:
-            entries.append(FileEntry(rel, hashlib.file_digest(fh, "sha256").hexdigest()))
+        entries.append(FileEntry(rel, sha256_file(folder / rel)))
     return entries
 
 

@@ -1,4 +1,4 @@
-"""Foot contacts, gait events and the stepping phase (DESIGN.md §5), in torch, batched over leading dims.
+"""Foot contacts, gait events and the stepping phase, in torch, batched over leading dims.
 
 Contacts are decided per point (heel and toe of each foot) from two measurements that transfer between
 datasets and marker sets: the point's speed in m/s, and its height above the point's own stance height

@@ -1,4 +1,4 @@
-"""Pose affective features and root movement features (DESIGN.md §5; the paper §3.2.3-3.2.4), in torch.
+"""Pose affective features and root movement features (the paper §3.2.3-3.2.4), in torch.
 
 The one implementation: annotation calls these on stored positions, the generator's losses will call them
 on forward kinematics of predicted rotations (``pose_affective_features``), so the two can never drift.

@@ -20,12 +20,12 @@ from typing import Any
 import numpy as np
 import pyarrow as pa
 
+from pipeline.core.emotions import GENERATOR_LABEL_METHOD
 from pipeline.core.schema import PUBLISHED, columns, descriptions, units
 from pipeline.io.files import schema_meta, with_schema_meta
 from pipeline.io.gait_table import array_column
 
 ARRAYS = tuple(c.name for c in columns(PUBLISHED) if c.is_array)
-SYNTHETIC_LABEL_METHOD = "generator_condition"
 
 
 def _columns(n: int, scalars: dict[str, Sequence[Any]], arrays: dict[str, np.ndarray],
@@ -57,7 +57,7 @@ def synthetic_table(plan: Sequence[dict[str, Any]], recipes: Sequence[str], arra
     """The synthetic gaits in the published schema; ``real`` lends its schema metadata (skeleton, names)."""
     n = len(plan)
     scalars = {"gait_id": [r["gait_id"] for r in plan], "kind": ["synthetic"] * n, "split": ["synthetic"] * n,
-               "source": ["generator"] * n, "content": ["walk"] * n, "label_method": [SYNTHETIC_LABEL_METHOD] * n,
+               "source": ["generator"] * n, "content": ["walk"] * n, "label_method": [GENERATOR_LABEL_METHOD] * n,
                "checkpoint_sha256": [checkpoint_sha256] * n, "seed_gait_id": [r["seed_gait_id"] for r in plan],
                "trajectory_id": [r["trajectory_id"] for r in plan],
                "trajectory_family": [r["trajectory_family"] for r in plan], "emotion_recipe": list(recipes),

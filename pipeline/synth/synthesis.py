@@ -1,10 +1,11 @@
-"""Synthesis of the planned gaits: batched generation from test-split seed prefixes along the planned trajectory
-pieces with per-frame emotions, then the same annotation as real gaits.
+"""Synthesis of the planned gaits, family-agnostic: the plan (from the split gaits and plain configs), any
+generator family (``pipeline.generators.base``) generating each row's gait in batches along its trajectory piece
+with per-frame emotions, then the same annotation as real gaits, and the stage's report (counts, novelty).
 
-The seed prefix is not part of a synthetic gait: only the generated frames are kept. The annotation of contacts
-and phase runs on prefix + generated frames (strikes before the first generated frame fix its phase) and is then
-cut to the generated frames; movement and affective features are computed on the generated window alone, as for
-real windows (pipeline.annotate.annotation).
+Frames a family generates from but does not publish (a seed prefix) are not part of a synthetic gait. The
+annotation of contacts and phase runs on those frames + generated frames (strikes before the first generated
+frame fix its phase) and is then cut to the generated frames; movement and affective features are computed on
+the generated window alone, as for real windows (pipeline.annotate.annotation).
 """
 
 from __future__ import annotations
@@ -14,46 +15,98 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import pyarrow as pa
 import torch
 
 from pipeline.annotate.annotation import AnnotateConfig, annotate_clip, stored_phase
+from pipeline.core.skeleton import Skeleton
+from pipeline.generators.base import GeneratorFamily
 from pipeline.ops.contacts import phase_rate
 from pipeline.ops.features import movement_features, pose_affective_features
-from pipeline.generators.autoregressive.rollout import PlacementConfig, Seeds, generate, place_paths
-from pipeline.generators.autoregressive.network import EmotiveGaitNet
-from pipeline.synth.plan import frame_emotions
-from pipeline.synth.trajectories import Trajectory, piece_from
-from pipeline.core.skeleton import Skeleton
+from pipeline.synth.novelty import (
+    distinct_labels,
+    l1_to_labels,
+    nearest_training_path,
+    novel_emotions,
+    training_nearest_distances,
+    training_paths,
+)
+from pipeline.synth.plan import build_plan, frame_emotions
+from pipeline.synth.trajectories import Trajectory, onto, piece_from, start_pose, trajectories_from_params
 
 
 @dataclass(frozen=True)
 class SynthesisConfig:
-    prefix: int = 18
-    frames: int = 60
+    """The plan and its synthesis (the pipeline params' ``synthesize``), with the gait length in frames."""
+
+    seed: int
+    emotions: int  # novel emotion vectors from the simplex
+    min_l1_to_training: float
+    transition_rounds: int
+    seed_content: str  # seeds: test-split windows of this content
+    trajectories: dict[str, dict[str, Any]]  # id -> {family, pieces, starts_within_m?}
+    start_span_m: float
+    novelty: dict[str, float]  # min_mean_distance_m, min_compared_m, piece_close_m
     path_ahead_m: float = 8.0
     batch: int = 1000
+    frames: int = 60
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any], frames: int) -> SynthesisConfig:
+        return cls(seed=int(d["seed"]), emotions=int(d["emotions"]), min_l1_to_training=float(d["min_l1_to_training"]),
+                   transition_rounds=int(d["transition_rounds"]), seed_content=str(d["seed_content"]),
+                   trajectories=d["trajectories"], start_span_m=float(d["start_span_m"]), novelty=d["novelty"],
+                   path_ahead_m=float(d["path_ahead_m"]), batch=int(d["batch"]), frames=int(frames))
 
 
-def synthesize(model: EmotiveGaitNet, arrays: dict[str, np.ndarray], row_of: dict[str, int],
-               plan: Sequence[dict[str, Any]], emotions: np.ndarray, trajectories: dict[str, Trajectory],
-               skeleton: Skeleton, placement: PlacementConfig, annotate: AnnotateConfig, cfg: SynthesisConfig,
-               progress: Callable[[int, int], None] | None = None) -> dict[str, np.ndarray]:
+@dataclass
+class SynthesisPlan:
+    """Everything the plan needs, from the split gaits: the train labels, the novel emotions, the trajectories,
+    the seed pool (test-split gaits) and one row per synthetic gait."""
+
+    table: pa.Table
+    arrays: dict[str, np.ndarray]
+    labels: np.ndarray  # the train split's emotion labels
+    emotions: np.ndarray
+    trajectories: list[Trajectory]
+    seed_pool: list[str]
+    plan: list[dict[str, Any]]
+
+    @classmethod
+    def prepare(cls, table: pa.Table, arrays: dict[str, np.ndarray], cfg: SynthesisConfig) -> SynthesisPlan:
+        split = np.array(table.column("split").to_pylist())
+        content = np.array(table.column("content").to_pylist())
+        labels = arrays["emotion"][split == "train"]
+        labels = labels[~np.isnan(labels).any(-1)].astype(np.float64)
+        emotions = novel_emotions(cfg.emotions, labels, cfg.min_l1_to_training, np.random.default_rng([cfg.seed, 0]))
+        trajectories = trajectories_from_params(cfg.trajectories, cfg.start_span_m)
+        gait_ids = table.column("gait_id").to_pylist()
+        seed_pool = [gait_ids[i] for i in np.flatnonzero((split == "test") & (content == cfg.seed_content))]
+        plan = build_plan(trajectories, emotions, seed_pool, cfg.transition_rounds, cfg.seed)
+        return cls(table, arrays, labels, emotions, trajectories, seed_pool, plan)
+
+    @property
+    def row_of(self) -> dict[str, int]:
+        """Row of the split table by gait id."""
+        return {g: i for i, g in enumerate(self.table.column("gait_id").to_pylist())}
+
+
+def synthesize(family: GeneratorFamily, plan: Sequence[dict[str, Any]], emotions: np.ndarray,
+               trajectories: dict[str, Trajectory], skeleton: Skeleton, annotate: AnnotateConfig,
+               cfg: SynthesisConfig, progress: Callable[[int, int], None] | None = None) -> dict[str, np.ndarray]:
     """Arrays (gaits, ...) for every plan row, in plan order: positions, rotations, root_path, heading, contacts,
     phase, phase_rate, affective, movement, emotion_per_frame, the per-gait emotion (mean over the frames) and
     phase_from_condition (bool per gait)."""
-    offsets = torch.from_numpy(skeleton.offsets).to(torch.float32)
     parts: dict[str, list[np.ndarray]] = {}
     for first in range(0, len(plan), cfg.batch):
         rows = plan[first:first + cfg.batch]
-        seed_rows = np.array([row_of[r["seed_gait_id"]] for r in rows])
-        seeds = Seeds.from_arrays(arrays, seed_rows, cfg.prefix)
-        shapes = torch.from_numpy(np.stack([piece_from(trajectories[r["trajectory_id"]].points, r["start_m"], cfg.path_ahead_m)
-                                            for r in rows]).astype(np.float32))
+        shapes = torch.from_numpy(np.stack([piece_from(trajectories[r["trajectory_id"]].points, r["start_m"],
+                                                       cfg.path_ahead_m) for r in rows]).astype(np.float32))
         per_frame = np.stack([frame_emotions(r["recipe"], emotions, cfg.frames) for r in rows])
-        g = generate(model, seeds, place_paths(shapes, seeds), torch.from_numpy(per_frame.astype(np.float32)),
-                     offsets, skeleton.parents, placement)
-        batch = _annotate(g.positions.double(), g.rotations.double(), torch.from_numpy(arrays["positions"][seed_rows,
-                          :cfg.prefix]).double(), g.theta.double(), skeleton, annotate)
+        g = family.generate(rows, shapes, torch.from_numpy(per_frame.astype(np.float32)))
+        batch = _annotate(g.positions.double(), g.rotations.double(),
+                          None if g.context_positions is None else g.context_positions.double(),
+                          None if g.conditioned_phase is None else g.conditioned_phase.double(), skeleton, annotate)
         batch.update(positions=g.positions.numpy(), rotations=g.rotations.numpy(),
                      root_path=g.positions[:, :, 0, [0, 2]].numpy(), heading=g.heading.numpy(),
                      emotion_per_frame=per_frame, emotion=per_frame.mean(1))  # rows sum to 1
@@ -64,17 +117,18 @@ def synthesize(model: EmotiveGaitNet, arrays: dict[str, np.ndarray], row_of: dic
     return {k: np.concatenate(v) for k, v in parts.items()}
 
 
-def _annotate(positions: torch.Tensor, rotations: torch.Tensor, prefix_positions: torch.Tensor,
-              conditioned_phase: torch.Tensor, skeleton: Skeleton, cfg: AnnotateConfig) -> dict[str, np.ndarray]:
+def _annotate(positions: torch.Tensor, rotations: torch.Tensor, context_positions: torch.Tensor | None,
+              conditioned_phase: torch.Tensor | None, skeleton: Skeleton, cfg: AnnotateConfig) -> dict[str, np.ndarray]:
     """Annotations of generated gaits. Where the contacts give too few strikes to define the stepping phase, the
-    phase the generator was conditioned on is kept (``phase_from_condition`` flags those gaits)."""
-    prefix = prefix_positions.shape[1]
+    phase the family generated with is kept, if it has one (``phase_from_condition`` flags those gaits)."""
+    prefix = 0 if context_positions is None else context_positions.shape[1]
     contacts, phase, rate, fallback = [], [], [], []
     for n in range(positions.shape[0]):
-        ann = annotate_clip(torch.cat([prefix_positions[n], positions[n]]), skeleton, cfg)
+        clip = positions[n] if context_positions is None else torch.cat([context_positions[n], positions[n]])
+        ann = annotate_clip(clip, skeleton, cfg)
         theta = ann["phase"][prefix:]
         fallback.append(not bool(torch.isfinite(theta).all()))
-        if fallback[-1]:
+        if fallback[-1] and conditioned_phase is not None:
             theta = conditioned_phase[n]
         contacts.append(ann["contacts"][prefix:].numpy())
         phase.append(theta.numpy())
@@ -95,3 +149,83 @@ def copied_frames(synthetic: np.ndarray, real: np.ndarray, decimals: int = 4) ->
         return [row.tobytes() for row in flat + 0.0]  # + 0.0: -0.0 and 0.0 are the same value
     real_keys = set(keys(real))
     return sum(k in real_keys for k in keys(synthetic))
+
+
+PLAN_COLUMNS = ("gait_id", "trajectory_id", "trajectory_family", "start_m", "seed_gait_id", "plan_seed",
+                "emotion_recipe")
+
+
+def plan_rows(plan: Sequence[dict[str, Any]], recipes: Sequence[str]) -> list[tuple]:
+    """One row per synthetic gait (PLAN_COLUMNS), for plan.csv."""
+    return [(r["gait_id"], r["trajectory_id"], r["trajectory_family"], r["start_m"], r["seed_gait_id"],
+             r["plan_seed"], recipe) for r, recipe in zip(plan, recipes)]
+
+
+def synthesis_report(work: SynthesisPlan, synthetic: dict[str, np.ndarray], cfg: SynthesisConfig, fps: float,
+                     model_sha256: str, phase_from_condition: list[str], seconds: float) -> dict[str, Any]:
+    """Counts, the emotion and trajectory novelty tests (trajectories vs the training clips' root paths), how
+    close the pieces single gaits walk come to training paths, copied real frames, timing."""
+    table, arrays, plan, trajectories = work.table, work.arrays, work.plan, work.trajectories
+    split = np.array(table.column("split").to_pylist())
+    clip_ids = table.column("clip_id").to_pylist()
+    train = np.flatnonzero(split == "train")
+    novelty = cfg.novelty
+    emotion_l1 = l1_to_labels(work.emotions, work.labels)
+    starts = np.round(table.column("t_start").to_numpy()[train] * fps).astype(int)
+    paths = training_paths(arrays["root_path"][train], [clip_ids[i] for i in train], starts, cfg.frames)
+    min_compared = float(novelty["min_compared_m"])
+    reference = training_nearest_distances(paths, min_compared)
+    shapes = {t.id: nearest_training_path(t.points, paths, min_compared) for t in trajectories}
+    by_id = {t.id: t for t in trajectories}
+    piece_m = float(np.median(np.linalg.norm(np.diff(synthetic["root_path"], axis=1), axis=-1).sum(1)))
+    closeness = np.array([nearest_training_path(piece_from(by_id[r["trajectory_id"]].points, r["start_m"], piece_m),
+                                                paths, piece_m)["distance_m"]
+                          for r in plan[:: max(1, len(plan) // 500)]])
+    sums = synthetic["emotion"].sum(-1)
+    frame_sums = synthetic["emotion_per_frame"].sum(-1)
+    min_distance = float(novelty["min_mean_distance_m"])
+    return {
+        "gaits": len(plan),
+        "per_trajectory": {t.id: sum(r["trajectory_id"] == t.id for r in plan) for t in trajectories},
+        "single_emotion_gaits": sum(r["recipe"]["kind"] == "single" for r in plan),
+        "transition_gaits": sum(r["recipe"]["kind"] == "transition" for r in plan),
+        "seed_pool": {"split": "test", "content": cfg.seed_content, "gaits": len(work.seed_pool),
+                      "used": len({r["seed_gait_id"] for r in plan})},
+        "checkpoint_sha256": model_sha256,
+        "emotion_rows_max_abs_sum_error": float(max(np.abs(sums - 1).max(), np.abs(frame_sums - 1).max())),
+        "emotion_novelty": {"test": f"L1 distance to every distinct training label > {cfg.min_l1_to_training}",
+                            "training_labels": distinct_labels(work.labels).tolist(),
+                            "min_l1": round(float(emotion_l1.min()), 4),
+                            "passed": bool((emotion_l1 > cfg.min_l1_to_training).all())},
+        "trajectory_novelty": {
+            "test": (f"mean distance at equal arc length to every training clip root path (aligned at each window "
+                     f"start, compared where they share >= {novelty['min_compared_m']} m) > {min_distance} m"),
+            "reference_training_nn_distance_m_p50_p90": [round(float(np.percentile(reference, q)), 4)
+                                                         for q in (50, 90)],
+            "compared_training_paths": len(paths.clip_ids),
+            "per_trajectory": {k: {"nearest_m": round(v["distance_m"], 4), "nearest_clip": v["clip_id"],
+                                   "compared_m": v["compared_m"], "novel": v["distance_m"] > min_distance}
+                               for k, v in shapes.items()},
+            "passed": all(v["distance_m"] > min_distance for v in shapes.values()),
+            "gait_pieces": {"length_m": round(piece_m, 3), "sampled": len(closeness),
+                            f"within_{novelty['piece_close_m']}_m_of_a_training_path": round(float(
+                                (closeness <= float(novelty["piece_close_m"])).mean()), 4),
+                            "nearest_m_p50": round(float(np.median(closeness)), 4)}},
+        "phase_from_condition": {"gaits": phase_from_condition, "why": "too few foot strikes in prefix + generated "
+                                 "frames to define the stepping phase; the generator's conditioned phase is kept"},
+        "copied_real_frames": copied_frames(synthetic["rotations"], arrays["rotations"]),
+        "finite": bool(all(np.isfinite(v).all() for v in synthetic.values())),
+        "seconds": round(seconds, 2),
+        "agent_frames_per_second": round(len(plan) * cfg.frames / seconds, 1),
+    }
+
+
+def placed_root_paths(work: SynthesisPlan, root_paths: np.ndarray) -> list[tuple[str, np.ndarray, list[np.ndarray]]]:
+    """Each trajectory with the generated root paths drawn where they start on it (for ``render_trajectories``)."""
+    placed: dict[str, list[np.ndarray]] = {t.id: [] for t in work.trajectories}
+    by_id = {t.id: t for t in work.trajectories}
+    for r, root_path in zip(work.plan, root_paths):
+        points = by_id[r["trajectory_id"]].points
+        i, direction = start_pose(points, r["start_m"])
+        placed[r["trajectory_id"]].append(onto(root_path, points[i], direction))
+    return [(t.id, t.points, placed[t.id]) for t in work.trajectories]

@@ -6,7 +6,6 @@ Paths, manifests and configs in, ``Motion``s out (``stick_figures`` renders them
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -16,7 +15,7 @@ import numpy as np
 from pipeline.core.skeleton import Skeleton
 from pipeline.ingest.retarget import bvh_point_positions
 from pipeline.ingest.run import IngestConfig, ingest_chunk
-from pipeline.io.files import read_meta
+from pipeline.io.files import read_meta, sha256_file
 from pipeline.io.gait_table import read_gaits
 from pipeline.io.manifests import SourceManifest, locate_source_file
 from pipeline.io.readers.bvh import read_bvh
@@ -60,7 +59,7 @@ def bvh_motions(path: Path, manifests: Sequence[SourceManifest], skeleton: Skele
         raise PreviewError(str(err)) from None
     manifest = by_name[name]
     file = cfg.mocap_root / name / rel
-    sha = hashlib.sha256(file.read_bytes()).hexdigest()
+    sha = sha256_file(file)
     cfg = replace(cfg, min_gait_speed=0.0)
     result = ingest_chunk(manifest, skeleton, [(rel, sha)], cfg)
     if not result.windows:

@@ -21,7 +21,6 @@ import pyarrow as pa  # noqa: E402
 
 from pipeline.core.skeleton import Skeleton  # noqa: E402
 from pipeline.io.files import atomic_path, save_figure  # noqa: E402
-from pipeline.ops.contacts import CONTACT_POINTS  # noqa: E402
 
 LEFT, RIGHT, TRUNK = "#1f5fbf", "#c0392b", "#222222"
 
@@ -194,9 +193,9 @@ def render_trajectories(trajectories: Sequence[tuple[str, np.ndarray, Sequence[n
 
 
 def annotation_examples(table: pa.Table, arrays: dict[str, np.ndarray], annotations: dict[str, np.ndarray],
-                        skeleton: Skeleton, fps: float, out: Path) -> None:
-    """Heel/toe heights, contacts and phase of the first (labelled, where there is one) walk of up to three
-    sources, drawn by ``render_annotation``."""
+                        skeleton: Skeleton, contact_points: Sequence[str], fps: float, out: Path) -> None:
+    """Heights, contacts and phase of the ``contact_points`` (joint names) of the first (labelled, where there is
+    one) walk of up to three sources, drawn by ``render_annotation``."""
     chosen: dict[str, str] = {}
     for cid, src, content, method in zip(table.column("clip_id").to_pylist(), table.column("source").to_pylist(),
                                          table.column("content").to_pylist(), table.column("label_method").to_pylist()):
@@ -204,7 +203,7 @@ def annotation_examples(table: pa.Table, arrays: dict[str, np.ndarray], annotati
             chosen[src] = (cid, method)
     clip_ids = table.column("clip_id").to_pylist()
     starts = np.round(table.column("t_start").to_numpy() * fps).astype(int)
-    points = [skeleton.index(n) for n in CONTACT_POINTS]
+    points = [skeleton.index(n) for n in contact_points]
     examples = []
     for src, (cid, _) in sorted(chosen.items())[:3]:
         rows = [r for r, c in enumerate(clip_ids) if c == cid]
@@ -215,7 +214,7 @@ def annotation_examples(table: pa.Table, arrays: dict[str, np.ndarray], annotati
             heights[s] = arrays["positions"][r][:, points, 1]
             contacts[s] = annotations["contacts"][r]
             phase[s] = annotations["phase"][r]
-        examples.append(AnnotatedClip(cid, fps, heights, contacts, phase, CONTACT_POINTS))
+        examples.append(AnnotatedClip(cid, fps, heights, contacts, phase, tuple(contact_points)))
     render_annotation(examples, out)
 
 

@@ -5,6 +5,7 @@ placed at the seed's last root position and direction of travel."""
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -13,6 +14,7 @@ import torch
 from pipeline.core.skeleton import Skeleton
 from pipeline.generators.autoregressive.network import EmotiveGaitNet
 from pipeline.generators.autoregressive.rollout import PlacementConfig, Seeds, generate, place_paths
+from pipeline.generators.autoregressive.training import load_checkpoint
 from pipeline.generators.base import GeneratedMotion
 
 NAME = "autoregressive_affect"
@@ -29,6 +31,12 @@ class AutoregressiveFamily:
         self.arrays, self.row_of, self.skeleton = arrays, row_of, skeleton
         self.placement, self.prefix = placement, prefix
         self.offsets = torch.from_numpy(skeleton.offsets).to(torch.float32)
+
+    @classmethod
+    def from_checkpoint(cls, path: Path, arrays: dict[str, np.ndarray], row_of: dict[str, int], skeleton: Skeleton,
+                        placement: PlacementConfig, prefix: int) -> AutoregressiveFamily:
+        model, _, sha = load_checkpoint(path)
+        return cls(model, sha, arrays, row_of, skeleton, placement, prefix)
 
     def generate(self, rows: Sequence[dict[str, Any]], paths: torch.Tensor, emotions: torch.Tensor) -> GeneratedMotion:
         seed_rows = np.array([self.row_of[r["seed_gait_id"]] for r in rows])

@@ -1,4 +1,4 @@
-"""The affect-based autoregressive gait generator (paper §4, DESIGN.md §6): network, inputs, losses.
+"""The affect-based autoregressive gait generator (paper §4): network, inputs, losses.
 
 One step of the network reads frame t of a gait and predicts frame t + 1:
 
@@ -54,7 +54,8 @@ FOOT_JOINTS = canonical_skeleton().foot_joints  # heel and toe of each foot, by 
 
 @dataclass(frozen=True)
 class GeneratorConfig:
-    """Layer sizes (params.yaml ``train.model``). Defaults are a CPU size; the paper's code used a 2×1024 GRU."""
+    """Layer sizes (the pipeline params' ``train.model``). Defaults are a CPU size; the paper's code used a
+    2×1024 GRU."""
 
     affect_layers: tuple[int, ...] = (32, 32, 16)  # FC_enc1, last = H1
     movement_layers: tuple[int, ...] = (16, 16, 8)  # FC_enc2, last = H2
@@ -78,7 +79,7 @@ class GeneratorConfig:
 
 @dataclass(frozen=True)
 class LossWeights:
-    """λ of paper Eq. 13 (params.yaml ``train.loss``); λ_versor weighs the unit-norm term of Eq. 8."""
+    """λ of paper Eq. 13 (the pipeline params' ``train.loss``); λ_versor weighs the unit-norm term of Eq. 8."""
 
     motion: float = 1.0
     pose: float = 1.0

@@ -55,7 +55,7 @@ from pipeline.generators.autoregressive.training import GaitTensors, extrapolate
 
 @dataclass(frozen=True)
 class PlacementConfig:
-    """params.yaml ``generate``."""
+    """Where generated gaits go: the root placement rules (the pipeline params' ``generate``)."""
 
     fps: float = 30.0
     lookahead_m: float = 0.6
@@ -67,8 +67,8 @@ class PlacementConfig:
     max_drift_deg: float = 15.0
 
     @classmethod
-    def from_params(cls, generate: dict[str, Any], fps: float) -> PlacementConfig:
-        """From params.yaml ``generate`` (numbers and the ``root_advance`` name) at the gaits' frame rate."""
+    def from_dict(cls, generate: dict[str, Any], fps: float) -> PlacementConfig:
+        """From a ``generate`` mapping (numbers and the ``root_advance`` name) at the gaits' frame rate."""
         return cls(fps=float(fps), **{k: (v if isinstance(v, str) else float(v)) for k, v in generate.items()})
 
     def __post_init__(self) -> None:

@@ -43,7 +43,7 @@ DIRECTION_FRAMES = 31  # ~1 s at 30 fps: about one stride, over which the direct
 
 @dataclass(frozen=True)
 class TrainConfig:
-    """params.yaml ``train`` (without the model sizes)."""
+    """The training run: curriculum, optimiser, batches, seed (the pipeline params' ``train``, less the model sizes)."""
 
     epochs: int = 300
     batch_size: int = 128

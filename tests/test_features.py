@@ -142,7 +142,7 @@ def test_annotation_equals_the_training_path(annotated, skeleton):
     assert torch.allclose(direct[..., keep], training[..., keep], atol=1e-4)
 
 
-# DESIGN.md §5's table of the 18 affective features, written with the joints' names (manifests/skeleton.yaml) rather
+# The design notes' table of the 18 affective features, written with the joints' names (manifests/skeleton.yaml) rather
 # than the library's index table, and computed below in numpy by plain vector algebra (arccos of the normalised
 # dot product, cross-product areas), not by the library's atan2 / Heron formulas.
 DESIGN_FEATURES = (

@@ -15,7 +15,7 @@ from pipeline.ops.geometry import arc_lengths, to_local_frame, travel_direction,
 from pipeline.synth.novelty import nearest_training_path, novel_emotions, training_paths
 from pipeline.synth.plan import build_plan, frame_emotions, transition_rounds
 from pipeline.synth.synthesis import copied_frames
-from pipeline.synth.trajectories import TRAVEL_FRAMES, piece_from, trajectories_from_params, trajectory_points
+from pipeline.synth.trajectories import TRAVEL_FRAMES, piece_from, trajectories_from_spec, trajectory_points
 from stages.common import load_params
 
 PARAMS = load_params()["synthesize"]
@@ -57,7 +57,7 @@ def test_transition_rounds_are_disjoint_and_never_repeat_a_pair():
 
 
 def test_the_default_plan_has_exactly_5000_gaits_with_their_recipes():
-    trajectories = trajectories_from_params(PARAMS["trajectories"], PARAMS["start_span_m"])
+    trajectories = trajectories_from_spec(PARAMS["trajectories"], PARAMS["start_span_m"])
     emotions = novel_emotions(PARAMS["emotions"], np.eye(4), PARAMS["min_l1_to_training"], np.random.default_rng(0))
     plan = build_plan(trajectories, emotions, ["a", "b", "c"], PARAMS["transition_rounds"], PARAMS["seed"])
     assert len(trajectories) == 20 and len(plan) == 5000
@@ -87,7 +87,7 @@ def test_trajectory_novelty_rejects_a_training_path_and_accepts_the_planned_shap
     assert nearest_training_path(own, paths, least, exclude_clip=cid)["clip_id"] != cid
     straight = nearest_training_path(trajectory_points([[12, 0, 0]]), paths, least)
     assert straight["distance_m"] < threshold  # walking straight ahead is not new
-    for t in trajectories_from_params(PARAMS["trajectories"], PARAMS["start_span_m"]):
+    for t in trajectories_from_spec(PARAMS["trajectories"], PARAMS["start_span_m"]):
         assert nearest_training_path(t.points, paths, least)["distance_m"] > threshold, t.id
 
 

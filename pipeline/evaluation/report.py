@@ -13,7 +13,7 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from pipeline.io.files import save_figure  # noqa: E402
-from pipeline.ops.geometry import to_local_frame, travel_direction, unit_direction  # noqa: E402
+from pipeline.ops.geometry import arc_lengths, to_local_frame, travel_direction, unit_direction  # noqa: E402
 from pipeline.viz.stick_figures import Motion, render_filmstrip  # noqa: E402
 
 
@@ -103,7 +103,7 @@ def plot_rollouts(rollouts: dict, report: dict, path: Path) -> None:
             target = local(r.path)
             dense = np.concatenate([np.linspace(target[0, k], target[0, k + 1], 200)
                                     for k in range(target.shape[1] - 1)])
-            dense = dense[np.cumsum(np.r_[0, np.linalg.norm(np.diff(dense, axis=0), axis=1)]) <= reach]
+            dense = dense[arc_lengths(torch.from_numpy(dense)).numpy() <= reach]
             ax.plot(dense[:, 0], dense[:, 1], color="0.75", lw=6, zorder=0, label="target path")
             for track in local(root):
                 ax.plot(track[:, 0], track[:, 1], lw=0.8)

@@ -1,4 +1,4 @@
-"""Novelty of the synthesis plan (DESIGN.md §7): new trajectories w.r.t. the training clips' root paths, new
+"""Novelty of the synthesis plan: new trajectories w.r.t. the training clips' root paths, new
 emotions w.r.t. the training labels.
 
 Novelty of a trajectory (stated test): aligned at its start and initial direction with every training clip's

@@ -1,4 +1,4 @@
-"""The synthesis plan (DESIGN.md §7): one row (a recipe) per synthetic gait.
+"""The synthesis plan: one row (a recipe) per synthetic gait.
 
 Per trajectory (pipeline.synth.trajectories): every novel emotion (pipeline.synth.novelty) once (single-emotion
 gaits) plus ``transition_rounds`` rounds of disjoint pairs of them (each round a random pairing, no pair repeated

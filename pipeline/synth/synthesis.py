@@ -32,7 +32,7 @@ from pipeline.synth.novelty import (
     training_paths,
 )
 from pipeline.synth.plan import build_plan, frame_emotions
-from pipeline.synth.trajectories import Trajectory, onto, piece_from, start_pose, trajectories_from_params
+from pipeline.synth.trajectories import Trajectory, onto, piece_from, start_pose, trajectories_from_spec
 
 
 @dataclass(frozen=True)
@@ -79,7 +79,7 @@ class SynthesisPlan:
         labels = arrays["emotion"][split == "train"]
         labels = labels[~np.isnan(labels).any(-1)].astype(np.float64)
         emotions = novel_emotions(cfg.emotions, labels, cfg.min_l1_to_training, np.random.default_rng([cfg.seed, 0]))
-        trajectories = trajectories_from_params(cfg.trajectories, cfg.start_span_m)
+        trajectories = trajectories_from_spec(cfg.trajectories, cfg.start_span_m)
         gait_ids = table.column("gait_id").to_pylist()
         seed_pool = [gait_ids[i] for i in np.flatnonzero((split == "test") & (content == cfg.seed_content))]
         plan = build_plan(trajectories, emotions, seed_pool, cfg.transition_rounds, cfg.seed)

@@ -1,7 +1,7 @@
-"""Trajectories for synthetic gaits (DESIGN.md §7): given as data, sampled as ground points, cut into the pieces
+"""Trajectories for synthetic gaits: given as data, sampled as ground points, cut into the pieces
 that single gaits walk.
 
-Trajectories are given as data (params.yaml ``synthesize.trajectories``): a list of pieces, each either
+Trajectories are given as data (the pipeline params' ``synthesize.trajectories``): a list of pieces, each either
 ``[length_m, curvature_start, curvature_end]`` (a clothoid: curvature in 1/m changing linearly along the piece,
 positive to the left; constant curvature is an arc, zero a straight line) or ``[turn_deg]`` (a corner). A path
 starts at (0, 0) heading +z (x, z ground coordinates; +x is the body's left), which
@@ -87,7 +87,7 @@ def onto(path: np.ndarray, origin: np.ndarray, direction: float) -> np.ndarray:
     return (to_local_frame(p, unit_direction(turn), p[0]) + torch.from_numpy(origin)).numpy()
 
 
-def trajectories_from_params(spec: dict[str, dict[str, Any]], default_start_span: float) -> list[Trajectory]:
+def trajectories_from_spec(spec: dict[str, dict[str, Any]], default_start_span: float) -> list[Trajectory]:
     return [Trajectory(id=tid, family=str(t["family"]), pieces=tuple(tuple(float(v) for v in p) for p in t["pieces"]),
                        starts_within_m=float(t.get("starts_within_m", default_start_span)))
             for tid, t in spec.items()]

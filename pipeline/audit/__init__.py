@@ -1,0 +1,1 @@
+"""The audit of any published directory: problems, label distributions, recognisability, the HTML report."""

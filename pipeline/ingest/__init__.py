@@ -1,0 +1,2 @@
+"""Mocap files -> canonical 60-frame gait windows: the file screen, retargeting, marker rules, the dask run and its
+report."""

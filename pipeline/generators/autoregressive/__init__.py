@@ -1,0 +1,2 @@
+"""The paper's affect-based autoregressive network: network and losses, training, fitting the variants, rollout, the
+family."""

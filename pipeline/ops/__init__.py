@@ -1,2 +1,2 @@
 """Pure batched torch maths over arrays (shapes in docstrings): quaternions, kinematics, geometry, features, contacts,
-resampling. Knows no files, sources or stages."""
+resampling, left-right mirroring. Knows no files, sources or stages."""

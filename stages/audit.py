@@ -13,6 +13,7 @@ from typing import Any
 import torch
 
 from pipeline.audit.metrics import ClassifierConfig
+from pipeline.audit.report import verdict_lines
 from pipeline.audit.run import audit_directory
 from stages.common import REPO, load_params
 
@@ -30,12 +31,9 @@ def main(params_path: Path | None = None, directory: Path = PUBLISHED, out: Path
                                   seeds=tuple(int(s) for s in c["seeds"]))
     print(f"audit: {directory}", flush=True)
     metrics = audit_directory(Path(directory), Path(out), classifier)
-    r = metrics["recognisability"]
-    print(f"audit: {metrics['gaits']} gaits, {metrics['problem_count']} problems; "
-          + (f"real test accuracy {r['real_test']['accuracy_mean']:.2f}" if "real_test" in r else "no classifier")
-          + (f", synthetic {r['synthetic']['accuracy_mean']:.2f}, augmentation delta "
-             f"{r['augmentation_delta']['accuracy']:+.3f}" if "augmentation_delta" in r else "")
-          + f" -> {out}")
+    print(f"audit: {metrics['gaits']} gaits, {metrics['problem_count']} problems -> {out}")
+    for family, verdict in verdict_lines(metrics["recognisability"]):
+        print(f"audit: {family}: {verdict}")
     return metrics
 
 

@@ -1,16 +1,36 @@
 """The audit on a published directory with planted defects: every defect is named, nothing crashes, and the
-page shows every figure. (The audit of the real published dataset runs in tests/test_dvc_stage.py.)"""
+page shows every figure (slow: the full ingest). The page a person reads (fast, on hand-made gaits): a verdict
+per generator family whose numbers are the metrics', every cell formatted, every feature named in words. The
+scores on hand-made confusion matrices. (The audit of the real published dataset runs in tests/test_dvc_stage.py.)"""
 
 from __future__ import annotations
 
+import html
 import json
 import re
 
 import numpy as np
+import pandas as pd
 import pyarrow as pa
 import pytest
 
-from pipeline.audit.metrics import js_distance, normalised_entropy, scores
+from pipeline.audit.metrics import (
+    ClassifierConfig,
+    describe_affective_feature,
+    feature_descriptions,
+    gait_problems,
+    js_distance,
+    majority_baseline,
+    normalised_entropy,
+    parse_affective_name,
+    recognisability,
+    scores,
+)
+from pipeline.audit.report import verdict_lines
+from pipeline.audit.run import audit_frame
+from pipeline.core.emotions import EMOTIONS, dominant_emotion
+from pipeline.core.skeleton import canonical_skeleton
+from pipeline.ops.features import AFFECTIVE_FEATURES, AFFECTIVE_NAMES, MOVEMENT_NAMES
 from pipeline.dataset import write_sha256sums
 from pipeline.io.gait_table import array_column, column_array
 from stages.audit import main as audit
@@ -73,3 +93,165 @@ def test_label_measures():
     f1 = [2 * 8 / (10 + 8), 2 * 5 / (10 + 7), 2 * 10 / (10 + 15)]
     assert result["accuracy"] == pytest.approx(23 / 30, abs=1e-4)
     assert result["macro_f1"] == pytest.approx(np.mean(f1), abs=1e-4)
+
+
+def test_balanced_accuracy_and_majority_baseline_on_a_hand_made_matrix():
+    matrix = np.array([[8, 2, 0, 0], [0, 5, 5, 0], [1, 0, 14, 0], [0, 0, 0, 0]])  # no true 'neutral'
+    result = scores(matrix)
+    assert result["accuracy"] == pytest.approx(27 / 35, abs=1e-4)
+    assert result["balanced_accuracy"] == pytest.approx((8 / 10 + 5 / 10 + 14 / 15) / 3, abs=1e-4)
+    baseline = majority_baseline(matrix, EMOTIONS)  # always 'angry': 15 of the 35 tested gaits
+    assert baseline == {"class": "angry", "accuracy": pytest.approx(15 / 35, abs=1e-4),
+                        "balanced_accuracy": pytest.approx(1 / 3, abs=1e-4),
+                        "macro_f1": pytest.approx((2 * 15 / (15 + 35)) / 3, abs=1e-4)}
+    assert scores(np.diag([3, 0, 4, 1]))["balanced_accuracy"] == 1.0
+
+
+# ------------------------------------------------------------------------------------ the page, hand-made gaits
+
+FRAMES = 8
+
+
+def _gaits(kind: str, split: str, classes: list[int | None], rng, shift: float, **extra) -> list[dict]:
+    rows = []
+    for i, c in enumerate(classes):
+        emotion = None if c is None else np.eye(4, dtype=np.float32)[c]
+        affective = rng.normal(1.0, 0.3, (FRAMES, 18)).astype(np.float32)
+        if c is not None:
+            affective[:, c] += shift  # an emotion shows in one feature
+        rows.append({"gait_id": f"{kind}-{split}-{i}", "kind": kind, "split": split,
+                     "source": "mocap" if kind == "real" else "generator",
+                     "label_method": None if c is None else ("actor_intended" if kind == "real" else
+                                                             "generator_condition"),
+                     "emotion": emotion, "contacts": np.zeros((FRAMES, 4), np.float32),
+                     "phase": np.linspace(0, 6, FRAMES, dtype=np.float32), "affective": affective,
+                     "movement": rng.normal(0.0, 0.1, (FRAMES, 5)).astype(np.float32), **extra})
+    return rows
+
+
+def _frame(generators: tuple[str, ...] | None = None) -> tuple[pd.DataFrame, dict]:
+    rng = np.random.default_rng(0)
+    rows = (_gaits("real", "train", [k % 4 for k in range(48)], rng, 1.5)
+            + _gaits("real", "test", [k % 4 for k in range(16)], rng, 1.5)
+            + _gaits("real", "train", [None] * 5, rng, 0.0))
+    for g, name in enumerate(generators or ("",)):
+        extra = {"generator": name} if generators else {}
+        rows += _gaits("synthetic", "synthetic", [(k + g) % 4 for k in range(20)], rng, 0.5 * g, **extra)
+    frame = pd.DataFrame(rows)
+    frame["dominant"] = [dominant_emotion(e, EMOTIONS) for e in frame["emotion"]]
+    frame.loc[1, "contacts"][3, 2] = 0.5  # two planted problems, so the problems table has rows
+    frame.loc[2, "phase"][4] = 7.0
+    meta = {"emotion_order": list(EMOTIONS), "affective_names": list(AFFECTIVE_NAMES),
+            "movement_names": list(MOVEMENT_NAMES), "joint_names": list(canonical_skeleton().names)}
+    return frame, meta
+
+
+CLASSIFIER = ClassifierConfig(epochs=40, seeds=(0, 1))
+
+
+@pytest.fixture(scope="module")
+def page(tmp_path_factory):
+    frame, meta = _frame()
+    out = tmp_path_factory.mktemp("audit_page")
+    metrics = audit_frame(frame, meta, gait_problems(frame), "hand_made", out, CLASSIFIER)
+    return metrics, (out / "index.html").read_text()
+
+
+def _text(page: str) -> str:
+    """The page without its embedded images, tags removed, entities decoded."""
+    return html.unescape(re.sub(r"<[^>]+>", " ", re.sub(r'src="data:image/png;base64,[^"]*"', "", page)))
+
+
+def _cells(page: str) -> list[str]:
+    return [html.unescape(re.sub(r"<[^>]+>", "", c)).strip() for c in re.findall(r"<td>(.*?)</td>", page, re.S)]
+
+
+def test_the_page_leads_with_a_verdict_whose_numbers_are_the_metrics(page):
+    metrics, text = page
+    r = metrics["recognisability"]
+    (family,) = r["families"]
+    assert family == "generator (generator_condition)"
+    verdicts = re.findall(r'<li class="verdict">(.*?)</li>', text, re.S)
+    assert len(verdicts) == 1 and text.index("verdict") < text.index("<h2>Overview")
+    line = html.unescape(re.sub(r"<[^>]+>", "", verdicts[0]))
+    syn, real, delta = r["synthetic"], r["real_test"], r["augmentation_delta"]
+    pct = lambda x: f"{100 * x:.1f} %"  # noqa: E731
+    pts = lambda x: f"{'−' if round(100 * x, 1) < 0 else '+'}{abs(100 * x):.1f} pts"  # noqa: E731
+    expected = [f"{family}: 20 synthetic gaits recognised as intended: {pct(syn['accuracy_mean'])}",
+                f"chance {pct(0.25)}", f"majority class {pct(syn['majority_baseline']['accuracy'])}",
+                f"real test {pct(real['accuracy_mean'])})", f"balanced accuracy {pct(syn['balanced_accuracy_mean'])}",
+                f"(real test {pct(real['balanced_accuracy_mean'])})",
+                f"augmentation {pts(delta['accuracy'])} accuracy",
+                f"{pts(delta['balanced_accuracy'])} balanced accuracy",
+                f"{pts(delta['macro_f1'])} macro-F1 on real test"]
+    for part in expected:
+        assert part in line, (part, line)
+    # every number in the line is one of the metrics' (as a percentage or points), none invented
+    figures = [100 * v for v in (syn["accuracy_mean"], 0.25, syn["majority_baseline"]["accuracy"],
+                                 real["accuracy_mean"], syn["balanced_accuracy_mean"],
+                                 real["balanced_accuracy_mean"], *delta.values())] + [20]
+    for found in re.findall(r"(?<![A-Za-z\d.])[−+]?\d+(?:\.\d+)?", line.split(":", 1)[1]):
+        assert min(abs(abs(float(found.replace("−", "-"))) - abs(f)) for f in figures) < 0.051, found
+    assert r["families"][family]["synthetic"] == syn  # one family: its figures are all synthetic gaits'
+
+
+def test_no_cell_of_the_page_is_a_raw_list_or_dict(page):
+    metrics, text = page
+    cells = _cells(text)
+    assert len(cells) > 100 and metrics["problem_count"] >= 2  # the planted problems are in the table
+    # a list, dict, tuple or array repr ('affective[0]' is an index, '[0, 2π)' an interval: both allowed)
+    raw = re.compile(r"(?<!\w)\[[^\]]*\]|[{}]|array\(|np\.|^None$|^nan$|^\(.*,.*\)$")
+    assert [c for c in cells if raw.search(c)] == []
+    assert "happy 0.25 · sad 0.25 · angry 0.25 · neutral 0.25" in cells  # a mean emotion, formatted
+    assert any(c.startswith("values 0, 0.5") for c in cells)  # a problem's finding, formatted
+
+
+def test_every_affective_feature_on_the_page_is_named_in_words_beside_its_index(page):
+    _, text = page
+    plain = _text(text)
+    assert not re.search(r"(angle|distance_ratio|area_ratio)(_\d+)+", plain)
+    names = canonical_skeleton().names
+    rows = [html.unescape(re.sub(r"<[^>]+>", "|", r)) for r in re.findall(r"<tr>(.*?)</tr>", text, re.S)]
+    for i, (kind, joints) in enumerate(AFFECTIVE_FEATURES):
+        words = describe_affective_feature(kind, joints, names)
+        assert not re.search(r"[\d_]", words) and all(n.split("_")[-1] in words or n == "root" for n in
+                                                       (names[j].replace("hand_index", "index finger") for j in joints))
+        assert any(f"|affective[{i}]|" in r and f"|{words}|" in r for r in rows), words
+    assert "angle at the neck between the head and the left shoulder" in plain
+
+
+def test_feature_words_come_from_the_definitions():
+    assert [parse_affective_name(n) for n in AFFECTIVE_NAMES] == [(k, tuple(j)) for k, j in AFFECTIVE_FEATURES]
+    names = canonical_skeleton().names
+    described = feature_descriptions(AFFECTIVE_NAMES, MOVEMENT_NAMES, names)
+    assert [d["words"] for d in described[:18]] == [describe_affective_feature(k, j, names)
+                                                     for k, j in AFFECTIVE_FEATURES]
+    assert described[7]["words"] == "angle at the left elbow between the left shoulder and the left hand"
+    assert described[0]["words"] == "angle at the lower back between the right and left shoulders"
+    assert described[13]["words"] == "ratio of the left toe–right toe distance to the neck–pelvis distance"
+    assert parse_affective_name("angle_1_2") is None
+    assert feature_descriptions(["tilt_x"], [], names)[0]["words"] == "tilt x"
+
+
+def test_one_verdict_per_generator_family():
+    frame, _ = _frame(generators=("autoregressive", "diffusion"))
+    r = recognisability(frame, EMOTIONS, CLASSIFIER)
+    assert set(r["families"]) == {"autoregressive", "diffusion"}
+    assert r["gaits"]["synthetic"] == 40 and all(f["gaits"] == 20 for f in r["families"].values())
+    lines = verdict_lines(r)
+    assert [name for name, _ in lines] == ["autoregressive", "diffusion"]
+    for name, line in lines:
+        acc = r["families"][name]["synthetic"]["accuracy_mean"]
+        assert f"recognised as intended: {100 * acc:.1f} %" in line
+    assert verdict_lines({"skipped": "no labelled real train or held-out gaits"})[0][1].startswith("no emotion")
+
+
+def test_the_page_says_so_without_a_classifier_or_without_synthetic_gaits(tmp_path):
+    frame, meta = _frame()
+    only_train = frame.assign(split=["train" if k == "real" else s for k, s in zip(frame["kind"], frame["split"])])
+    real_only = frame[frame["kind"] == "real"].reset_index(drop=True)
+    for name, part in (("no_test", only_train), ("real_only", real_only)):
+        audit_frame(part, meta, [], name, tmp_path / name, CLASSIFIER)
+        page = (tmp_path / name / "index.html").read_text()
+        (verdict,) = re.findall(r'<li class="verdict">(.*?)</li>', page, re.S)
+        assert ("no emotion classifier" if name == "no_test" else "no labelled synthetic gaits") in verdict

@@ -136,7 +136,8 @@ def check_audit(reports: Path, published: Path, tmp_path: Path) -> None:
     assert metrics["problem_count"] == 0 and metrics["kinds"]["synthetic"] == 5000
     recognition = metrics["recognisability"]
     assert recognition["real_test"]["accuracy_mean"] > recognition["chance_accuracy"] + 0.25  # real labels are learnable
-    assert set(recognition["augmentation_delta"]) == {"accuracy", "macro_f1"}
+    assert set(recognition["augmentation_delta"]) == {"accuracy", "balanced_accuracy", "macro_f1"}
+    assert set(recognition["real_test"]["majority_baseline"]) == {"class", "accuracy", "balanced_accuracy", "macro_f1"}
     page = (reports / "index.html").read_text()
     assert page.count("data:image/png;base64,") == len(list(reports.glob("*.png"))) == 6
     moved = tmp_path / "downloads" / "someone_elses_copy"

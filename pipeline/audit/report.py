@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import base64
 import html
-import json
 import math
+import textwrap
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -99,14 +99,19 @@ def plot_transitions(counts: np.ndarray, names: Sequence[str], path: Path) -> Pa
     return _save(fig, path)
 
 
-def plot_features(frame: pd.DataFrame, summaries: np.ndarray, feature_names: Sequence[str], names: Sequence[str],
+def _wrapped(label: str, width: int) -> str:
+    return "\n".join(textwrap.wrap(label, width)) or label
+
+
+def plot_features(frame: pd.DataFrame, summaries: np.ndarray, feature_labels: Sequence[str], names: Sequence[str],
                   path: Path) -> Path:
-    """Per-gait mean of each feature, per dominant emotion, real (blue) beside synthetic (orange)."""
-    cols = 6
-    rows = -(-len(feature_names) // cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.6 * rows), squeeze=False)
+    """Per-gait mean of each feature, per dominant emotion, real (blue) beside synthetic (orange); each panel
+    titled with the feature's index and what it measures (``metrics.feature_descriptions``)."""
+    cols = 5
+    rows = -(-len(feature_labels) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 3.0 * rows), squeeze=False)
     kinds = sorted(frame["kind"].unique())
-    for f, (ax, feature) in enumerate(zip(axes.flat, feature_names)):
+    for f, (ax, feature) in enumerate(zip(axes.flat, feature_labels)):
         data, positions, colours = [], [], []
         for e, emotion in enumerate(names):
             for k, kind in enumerate(kinds):
@@ -119,85 +124,261 @@ def plot_features(frame: pd.DataFrame, summaries: np.ndarray, feature_names: Seq
             parts = ax.boxplot(data, positions=positions, widths=0.8, showfliers=False, patch_artist=True)
             for patch, colour in zip(parts["boxes"], colours):
                 patch.set_facecolor(colour)
-        ax.set_xticks([e * (len(kinds) + 1) + (len(kinds) - 1) / 2 for e in range(len(names))],
-                      [n[:3] for n in names], fontsize=7)
-        ax.set_title(feature, fontsize=7)
+        ax.set_xticks([e * (len(kinds) + 1) + (len(kinds) - 1) / 2 for e in range(len(names))], list(names),
+                      fontsize=7)
+        ax.set_title(_wrapped(feature, 44), fontsize=7, loc="left")
         ax.tick_params(labelsize=6)
-    for ax in list(axes.flat)[len(feature_names):]:
+    for ax in list(axes.flat)[len(feature_labels):]:
         ax.axis("off")
     fig.suptitle("per-gait mean of each feature by dominant emotion: real (blue), synthetic (orange)")
     return _save(fig, path)
 
 
-def plot_feature_distances(distances: np.ndarray, feature_names: Sequence[str], path: Path) -> Path:
-    fig, ax = plt.subplots(figsize=(12, 3.5))
-    ax.bar(range(len(distances)), distances, color="tab:purple")
-    ax.set_xticks(range(len(distances)), feature_names, rotation=90, fontsize=6)
-    ax.set_ylabel("W1 distance / real std")
-    ax.set_title("real vs synthetic, per feature summary")
+def plot_feature_distances(distances: np.ndarray, feature_labels: Sequence[str], path: Path) -> Path:
+    """Real vs synthetic distance of each feature's per-gait mean and standard deviation, one row per feature
+    (``distances``: the means' distances for every feature, then the standard deviations'), log scale."""
+    n = len(feature_labels)
+    means, stds = np.asarray(distances[:n]), np.asarray(distances[n:2 * n])
+    fig, ax = plt.subplots(figsize=(14, 1.5 + 0.36 * n))
+    y = np.arange(n)
+    floor = 1e-3  # a log axis shows no zero; distances below this are drawn at it
+    ax.barh(y - 0.2, np.maximum(means, floor), 0.4, color="tab:purple", label="per-gait mean")
+    ax.barh(y + 0.2, np.maximum(stds, floor), 0.4, color="tab:olive", label="per-gait std over frames")
+    ax.set_xscale("log")
+    ax.axvline(1.0, color="0.4", lw=0.8, ls="--")
+    ax.set_yticks(y, [_wrapped(label, 70) for label in feature_labels], fontsize=8)
+    ax.invert_yaxis()
+    ax.set_xlabel("1-Wasserstein distance, real vs synthetic, in real standard deviations (log; dashed: 1)")
+    ax.legend(loc="lower right", fontsize=8)
+    ax.set_title("how far synthetic gaits lie from real ones, per feature")
     return _save(fig, path)
 
 
+CONFUSION_PANELS = (("real_test", "trained on real, tested on real held-out"),
+                    ("synthetic", "trained on real, tested on synthetic (intended emotion)"),
+                    ("augmented_real_test", "trained on real + synthetic, tested on real held-out"))
+
+
 def plot_confusions(recognition: dict[str, Any], names: Sequence[str], path: Path) -> Path:
-    panels = [(k, t) for k, t in (("real_test", "trained on real, tested on real test"),
-                                  ("synthetic", "trained on real, tested on synthetic (intended emotion)"),
-                                  ("augmented_real_test", "trained on real + synthetic, tested on real test"))
-              if k in recognition]
-    fig, axes = plt.subplots(1, max(1, len(panels)), figsize=(5 * max(1, len(panels)), 4.2), squeeze=False)
+    panels = [(k, t) for k, t in CONFUSION_PANELS if k in recognition]
+    fig, axes = plt.subplots(1, max(1, len(panels)), figsize=(5 * max(1, len(panels)), 4.4), squeeze=False)
     for ax, (key, title) in zip(axes.flat, panels):
         matrix = np.asarray(recognition[key]["confusion_summed_over_seeds"])
         ax.imshow(matrix / np.maximum(matrix.sum(1, keepdims=True), 1), cmap="Greens", vmin=0, vmax=1)
+        shares = matrix / np.maximum(matrix.sum(1, keepdims=True), 1)
         for (i, j), v in np.ndenumerate(matrix):
-            ax.text(j, i, str(v), ha="center", va="center", fontsize=8)
+            ax.text(j, i, str(v), ha="center", va="center", fontsize=8,
+                    color="white" if shares[i, j] > 0.5 else "black")
         ax.set_xticks(range(len(names)), names, fontsize=8)
         ax.set_yticks(range(len(names)), names, fontsize=8)
         ax.set_xlabel("predicted")
         ax.set_ylabel("true")
         r = recognition[key]
-        ax.set_title(f"{title}\naccuracy {r['accuracy_mean']:.2f}±{r['accuracy_std']:.2f}, "
-                     f"macro-F1 {r['macro_f1_mean']:.2f}", fontsize=8)
+        ax.set_title(f"{title}\naccuracy {percent(r['accuracy_mean'])}, balanced {percent(r['balanced_accuracy_mean'])}"
+                     f", macro-F1 {percent(r['macro_f1_mean'])}", fontsize=8)
     return _save(fig, path)
 
 
-def _table(rows: Sequence[dict[str, Any]], limit: int | None = None) -> str:
+# ------------------------------------------------------------------------------------------- formatting
+# Every figure on the page goes through these: percentages, signed points, fixed decimals, "a 1 · b 2" lists.
+
+MINUS = "\u2212"
+DASH = "–"  # an absent value
+
+
+def percent(x: float | None, digits: int = 1) -> str:
+    """0.8285 -> '82.9 %'."""
+    return DASH if x is None or not math.isfinite(x) else f"{100 * x:.{digits}f} %"
+
+
+def points(delta: float | None, digits: int = 1) -> str:
+    """A change of a fraction in percentage points, always signed: -0.0667 -> '−6.7 pts', 0.01 -> '+1.0 pts'."""
+    if delta is None or not math.isfinite(delta):
+        return DASH
+    text = f"{100 * abs(delta):.{digits}f}"
+    return f"{MINUS if delta < 0 and float(text) != 0 else '+'}{text} pts"
+
+
+def number(x: Any, digits: int = 3) -> str:
+    """Integers with thousands separators, floats with ``digits`` decimals, None as a dash."""
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return DASH
+    if isinstance(x, (bool, np.bool_)):
+        return "yes" if x else "no"
+    if isinstance(x, (int, np.integer)):
+        return f"{int(x):,}"
+    text = f"{float(x):.{digits}f}"
+    return text[1:] if text.startswith("-") and float(text) == 0 else text  # no '-0.000'
+
+
+def listing(values: dict[str, Any], digits: int = 3, skip_zero: Sequence[str] = ()) -> str:
+    """{'happy': 0.25, 'sad': 0.75} -> 'happy 0.250 · sad 0.750' (keys in ``skip_zero`` left out when 0)."""
+    return " · ".join(f"{k} {number(v, digits)}" for k, v in values.items() if not (k in skip_zero and not v)) or DASH
+
+
+def with_spread(mean: float, std: float) -> str:
+    """'82.9 % ± 1.2' (the spread over seeds in percentage points)."""
+    return f"{percent(mean)} ± {100 * std:.1f}"
+
+
+# ---------------------------------------------------------------------------------------------- verdicts
+
+def held_out_name(recognition: dict[str, Any]) -> str:
+    """'real test' (or 'real val + test'): the real gaits the recognisers were tested on."""
+    return "real " + " + ".join(recognition.get("test_splits", ["test"]))
+
+
+def verdict_lines(recognition: dict[str, Any]) -> list[tuple[str, str]]:
+    """One (family, plain sentence) per generator family: how often its gaits are recognised as the emotion
+    they were generated for, against chance, the majority class and real held-out gaits, and what adding them
+    to the recogniser's training does on real held-out gaits. Without a classifier or synthetic gaits, one line
+    that says so."""
+    if "real_test" not in recognition:
+        return [("no verdict", f"no emotion classifier: {recognition.get('skipped', 'not run')}")]
+    real, held = recognition["real_test"], held_out_name(recognition)
+    chance = recognition["chance_accuracy"]
+    families = {n: f for n, f in recognition.get("families", {}).items() if "synthetic" in f}
+    if not families:
+        return [("no synthetic gaits", f"no labelled synthetic gaits to judge; {held} gaits are recognised at "
+                                       f"{percent(real['accuracy_mean'])} (chance {percent(chance)}, balanced "
+                                       f"accuracy {percent(real['balanced_accuracy_mean'])})")]
+    lines = []
+    for name, family in families.items():
+        syn, delta = family["synthetic"], family.get("augmentation_delta")
+        text = (f"{number(family['gaits'])} synthetic gaits recognised as intended: {percent(syn['accuracy_mean'])} "
+                f"(chance {percent(chance)}, majority class {percent(syn['majority_baseline']['accuracy'])}, "
+                f"{held} {percent(real['accuracy_mean'])}); balanced accuracy {percent(syn['balanced_accuracy_mean'])} "
+                f"({held} {percent(real['balanced_accuracy_mean'])})")
+        if delta:
+            text += (f"; augmentation {points(delta['accuracy'])} accuracy, {points(delta['balanced_accuracy'])} "
+                     f"balanced accuracy, {points(delta['macro_f1'])} macro-F1 on {held}")
+        lines.append((name, text))
+    return lines
+
+
+# -------------------------------------------------------------------------------------------------- page
+
+def _cell(value: Any) -> str:
+    """A table cell: text as given, numbers formatted; a list or dict is refused (format it first)."""
+    if isinstance(value, (list, tuple, dict, np.ndarray)):
+        raise TypeError(f"audit page: a table cell must be formatted text or a number, found {type(value).__name__}")
+    return html.escape(value if isinstance(value, str) else number(value))
+
+
+def _table(rows: Sequence[dict[str, Any]], limit: int | None = None, css: str = "") -> str:
     if not rows:
         return "<p>none</p>"
     shown = rows[:limit] if limit else rows
     keys = list(shown[0])
     head = "".join(f"<th>{html.escape(k)}</th>" for k in keys)
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(r[k]))}</td>" for k in keys) + "</tr>" for r in shown)
+    body = "".join("<tr>" + "".join(f"<td>{_cell(r[k])}</td>" for k in keys) + "</tr>" for r in shown)
     more = f"<p>… and {len(rows) - len(shown)} more (all in metrics.json)</p>" if len(rows) > len(shown) else ""
-    return f"<table><tr>{head}</tr>{body}</table>{more}"
+    return f'<table class="{css}"><tr>{head}</tr>{body}</table>{more}'
+
+
+def _recognition_rows(recognition: dict[str, Any]) -> list[dict[str, str]]:
+    if "real_test" not in recognition:
+        return []
+    held = held_out_name(recognition)
+    train = f"{number(recognition['gaits']['real_train'])} real train"
+
+    def row(tested: str, trained: str, r: dict[str, Any]) -> dict[str, str]:
+        m = r["majority_baseline"]
+        return {"tested on": tested, "trained on": trained, "gaits": number(r["gaits"]),
+                "accuracy": with_spread(r["accuracy_mean"], r["accuracy_std"]),
+                "balanced accuracy": with_spread(r["balanced_accuracy_mean"], r["balanced_accuracy_std"]),
+                "macro-F1": with_spread(r["macro_f1_mean"], r["macro_f1_std"]),
+                "majority class: accuracy · balanced · macro-F1":
+                    f"{m['class']}: {percent(m['accuracy'])} · {percent(m['balanced_accuracy'])} · "
+                    f"{percent(m['macro_f1'])}"}
+
+    rows = [row(held, train, recognition["real_test"])]
+    for name, family in recognition.get("families", {}).items():
+        if "synthetic" not in family:
+            continue
+        rows.append(row(f"{name}: synthetic, intended emotion", train, family["synthetic"]))
+        if "augmented_real_test" in family:
+            rows.append(row(held, f"{train} + {number(family['gaits'])} {name}", family["augmented_real_test"]))
+            d = family["augmentation_delta"]
+            rows.append({"tested on": held, "trained on": f"change from adding {name}", "gaits": "",
+                         "accuracy": points(d["accuracy"]), "balanced accuracy": points(d["balanced_accuracy"]),
+                         "macro-F1": points(d["macro_f1"]), "majority class: accuracy · balanced · macro-F1": ""})
+    return rows
+
+
+def _label_rows(labels: dict[str, Any], names: Sequence[str]) -> list[dict[str, str]]:
+    groups = {**labels["by_kind"], **labels["by_kind_source"], **labels["by_kind_split"]}
+    return [{"group": g, "gaits": number(s["gaits"]), "labelled": number(s["labelled"]),
+             "mean emotion": listing(dict(zip(names, s["mean_emotion"])), 2) if s["mean_emotion"] else DASH,
+             "gaits per dominant emotion": listing(s["dominant"], skip_zero=("tie", UNLABELLED)),
+             "label entropy (0 one-hot, 1 uniform)": number(s["entropy_mean"], 2),
+             "imbalance (largest / smallest class)": number(s["imbalance_max_over_min"], 1),
+             "classes missing": ", ".join(s["missing_classes"]) or DASH}
+            for g, s in groups.items()]
+
+
+def _feature_rows(metrics: dict[str, Any]) -> list[dict[str, str]]:
+    distances = metrics.get("feature_distance_w1_over_real_std", {})
+    means = metrics.get("feature_means", {})
+    rows = []
+    for d in metrics.get("feature_descriptions", []):
+        m = means.get(d["name"], {})
+        rows.append({"feature": d["index"], "what it measures": d["words"], "joints": d["joints"] or DASH,
+                     "real: mean": number(m.get("real")), "synthetic: mean": number(m.get("synthetic")),
+                     "distance of per-gait means": number(distances.get(f"{d['name']} (mean)"), 2),
+                     "distance of per-gait std": number(distances.get(f"{d['name']} (std)"), 2)})
+    return rows
 
 
 def write_html(path: Path, title: str, metrics: dict[str, Any], problems: list[dict[str, str]],
-               figures: Sequence[tuple[Path, str]]) -> Path:
-    """One page: key figures, the problems table, every figure embedded (base64) with its caption."""
-    summary_rows = [{"group": g, **{k: (json.dumps(v) if isinstance(v, (dict, list)) else v)
-                                    for k, v in s.items() if k in ("gaits", "labelled", "mean_emotion", "dominant",
-                                                                   "entropy_mean", "imbalance_max_over_min")}}
-                    for g, s in {**metrics["labels"]["by_kind"], **metrics["labels"]["by_kind_source"],
-                                 **metrics["labels"]["by_kind_split"]}.items()]
+               figures: Sequence[tuple[Path, str]], names: Sequence[str]) -> Path:
+    """One page, read top-down: a verdict per generator family, the overview, the recognition table, the
+    problems, the labels, the features in words, and every figure embedded (base64) with its caption. Every
+    figure is formatted text (``_cell`` refuses raw lists and dicts)."""
     recognition = metrics.get("recognisability", {})
-    key_rows = [{"figure": k, "value": json.dumps(v)} for k, v in (
-        ("gaits", metrics["gaits"]), ("problems", len(problems)),
-        ("JS distance real vs synthetic", metrics["labels"].get("js_distance_real_vs_synthetic")),
-        *((f"{k}: accuracy / macro-F1", [recognition[k]["accuracy_mean"], recognition[k]["macro_f1_mean"]])
-          for k in ("real_test", "synthetic", "augmented_real_test") if k in recognition),
-        ("augmentation delta", recognition.get("augmentation_delta")))]
+    verdicts = "".join(f'<li class="verdict"><b>{html.escape(name)}</b>: {html.escape(text)}.</li>'
+                       for name, text in verdict_lines(recognition))
+    js = metrics["labels"].get("js_distance_real_vs_synthetic")
+    overview = [
+        {"figure": "gaits", "value": f"{number(metrics['gaits'])} ({listing(metrics['kinds'])})"},
+        {"figure": "problems", "value": number(len(problems))},
+        {"figure": "label distance, real vs synthetic (Jensen-Shannon, 0 same, 1 disjoint)",
+         "value": f"dominant emotions {number(js['dominant_classes'], 3)} · mean soft labels "
+                  f"{number(js['mean_soft_labels'], 3)}" if js else DASH},
+    ]
+    if "real_test" in recognition:
+        overview.append({"figure": "emotion recogniser", "value":
+                         f"MLP on {number(recognition['features'])} per-gait feature summaries, "
+                         f"{number(len(recognition['seeds']))} seed(s), "
+                         f"chance {percent(recognition['chance_accuracy'])}"})
+    if "transitions_by_start_end" in metrics:
+        overview.append({"figure": "synthetic transitions",
+                         "value": number(int(np.sum(metrics["transitions_by_start_end"])))})
     images = "".join(
         f'<figure><img alt="{html.escape(f.name)}" src="data:image/png;base64,'
         f'{base64.b64encode(f.read_bytes()).decode()}"><figcaption>{html.escape(caption)}</figcaption></figure>'
         for f, caption in figures)
     page = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>{html.escape(title)}</title>
-<style>body{{font-family:sans-serif;margin:2em;max-width:1400px}}table{{border-collapse:collapse;font-size:12px}}
-td,th{{border:1px solid #ccc;padding:2px 6px}}img{{max-width:100%}}figure{{margin:1.5em 0}}
-figcaption{{font-size:13px;color:#333}}</style></head><body>
+<style>body{{font-family:sans-serif;margin:2em;max-width:1400px;color:#222}}
+table{{border-collapse:collapse;font-size:13px;margin:0.5em 0}}td,th{{border:1px solid #ccc;padding:3px 8px;
+text-align:left;vertical-align:top}}th{{background:#f3f3f3}}img{{max-width:100%}}figure{{margin:1.5em 0}}
+figcaption{{font-size:13px;color:#333}}ul.verdicts{{font-size:17px;line-height:1.5;padding-left:1.2em}}
+li.verdict{{margin:0.3em 0}}table.recognition td:nth-child(n+3){{white-space:nowrap}}</style></head><body>
 <h1>{html.escape(title)}</h1>
-<h2>Key figures</h2>{_table(key_rows)}
+<h2>Verdict</h2><ul class="verdicts">{verdicts}</ul>
+<h2>Overview</h2>{_table(overview)}
+<h2>Emotion recognition</h2>
+<p>Accuracy, balanced accuracy (mean recall over the emotions present) and macro-F1: mean ± spread in points over
+the seeds. The majority class column is the best any constant answer does on the same gaits.</p>
+{_table(_recognition_rows(recognition), css="recognition")}
 <h2>Problems ({len(problems)})</h2>{_table(problems, 200)}
-<h2>Labels</h2>{_table(summary_rows)}
+<h2>Labels</h2>{_table(_label_rows(metrics["labels"], names))}
+<h2>Features</h2>
+<p>Per frame: the 18 affective features of the pose and the movement features of the pelvis. Mean: over all
+frames of all gaits of a kind. Distance: 1-Wasserstein between the real and synthetic per-gait values, in real
+standard deviations.</p>
+{_table(_feature_rows(metrics))}
 <h2>Figures</h2>{images}
 </body></html>
 """

@@ -9,9 +9,12 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+import pandas as pd
+
 from pipeline.audit.metrics import (
     ClassifierConfig,
     all_problems,
+    feature_descriptions,
     feature_distances,
     gait_summaries,
     label_distributions,
@@ -28,24 +31,39 @@ from pipeline.audit.report import (
     plot_transitions,
     write_html,
 )
+from pipeline.core.skeleton import canonical_skeleton
 from pipeline.io.files import write_json
 
 
 def audit_directory(directory: Path, out: Path, classifier: ClassifierConfig) -> dict[str, Any]:
     """Audit ``directory`` into ``out`` (metrics.json, *.png, index.html); returns the metrics."""
-    directory, out = Path(directory), Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    directory = Path(directory)
     frame, meta = load_for_audit(directory)
+    return audit_frame(frame, meta, all_problems(directory, frame), directory.name, out, classifier)
+
+
+def audit_frame(frame: pd.DataFrame, meta: dict[str, Any], problems: list[dict[str, str]], name: str, out: Path,
+                classifier: ClassifierConfig) -> dict[str, Any]:
+    """The audit of gaits already loaded (``metrics.load_for_audit``: one row per gait, the directory's schema
+    metadata) and checked (``problems``), into ``out``; returns the metrics."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
     names = list(meta["emotion_order"])
-    problems = all_problems(directory, frame)
     labels = label_distributions(frame, names)
     summaries = gait_summaries(frame)
     feature_names = [*meta["affective_names"], *meta["movement_names"]]
     summary_names = [f"{n} (mean)" for n in feature_names] + [f"{n} (std)" for n in feature_names]
+    descriptions = feature_descriptions(meta["affective_names"], meta["movement_names"],
+                                        meta.get("joint_names") or canonical_skeleton().names)
+    feature_labels = [f"{d['index']} {d['words']}" for d in descriptions]
     real, synthetic = (frame["kind"] == "real").to_numpy(), (frame["kind"] == "synthetic").to_numpy()
-    metrics: dict[str, Any] = {"directory": directory.name, "gaits": int(len(frame)),
+    metrics: dict[str, Any] = {"directory": name, "gaits": int(len(frame)),
                                "kinds": {k: int(v) for k, v in frame["kind"].value_counts().sort_index().items()},
-                               "problem_count": len(problems), "problems": problems, "labels": labels}
+                               "problem_count": len(problems), "problems": problems, "labels": labels,
+                               "feature_descriptions": descriptions,
+                               "feature_means": {n: {k: round(float(summaries[mask, i].mean()), 4)
+                                                     for k, mask in (("real", real), ("synthetic", synthetic))
+                                                     if mask.any()} for i, n in enumerate(feature_names)}}
     figures = [(plot_labels(frame, names, out / "labels.png"),
                 "Gaits per dominant emotion (ties and unlabelled shown), how labels were obtained, and label "
                 "entropy (0: one-hot, 1: uniform), real vs synthetic."),
@@ -59,10 +77,10 @@ def audit_directory(directory: Path, out: Path, classifier: ClassifierConfig) ->
     if real.any() and synthetic.any():
         distances = feature_distances(summaries[real], summaries[synthetic])
         metrics["feature_distance_w1_over_real_std"] = {n: round(float(d), 4) for n, d in zip(summary_names, distances)}
-        figures.append((plot_feature_distances(distances, summary_names, out / "feature_distances.png"),
+        figures.append((plot_feature_distances(distances, feature_labels, out / "feature_distances.png"),
                         "How far the synthetic per-gait feature summaries lie from the real ones (1-Wasserstein "
                         "distance in real standard deviations)."))
-    figures.append((plot_features(frame, summaries, feature_names, names, out / "features.png"),
+    figures.append((plot_features(frame, summaries, feature_labels, names, out / "features.png"),
                     "Affective and movement features (per-gait mean) by dominant emotion."))
     recognition = recognisability(frame, names, classifier)
     metrics["recognisability"] = recognition
@@ -72,5 +90,5 @@ def audit_directory(directory: Path, out: Path, classifier: ClassifierConfig) ->
                         "recognisability of real and synthetic gaits, and the same classifier trained with the "
                         "synthetic gaits added (augmentation)."))
     write_json(metrics, out / "metrics.json")
-    write_html(out / "index.html", f"Audit of {directory.name}", metrics, problems, figures)
+    write_html(out / "index.html", f"Audit of {name}", metrics, problems, figures, names)
     return metrics

@@ -25,6 +25,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
+from pipeline.io.files import write_json  # noqa: E402
 from pipeline.annotate.contact_validation import DETECTORS, acceptance, our_events, validate, zeni_events  # noqa: E402
 from stages.common import SOURCES, load_params, mocap_root  # noqa: E402
 from stages.configs import contact_config, validation_config  # noqa: E402
@@ -71,10 +72,8 @@ def main() -> dict:
             for name in DETECTORS
         },
     }
-    OUT.parent.mkdir(parents=True, exist_ok=True)
-    text = json.dumps(result, indent=2, sort_keys=True)
-    OUT.write_text(text + "\n")
-    print(text)
+    write_json(result, OUT)
+    print(json.dumps(result, indent=2, sort_keys=True))
     return result
 
 

@@ -50,7 +50,7 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from pipeline.ingest.run import IngestConfig, ingest_chunk, missing_data_message, plan_chunks  # noqa: E402
-from pipeline.io.files import sha256_bytes  # noqa: E402
+from pipeline.io.files import sha256_bytes, write_json  # noqa: E402
 from pipeline.io.readers.bvh import read_bvh  # noqa: E402
 from pipeline.core.skeleton import load_skeleton  # noqa: E402
 from pipeline.io.manifests import SourceManifest, load_manifests  # noqa: E402
@@ -290,10 +290,8 @@ def main(argv: list[str] | None = None) -> dict:
         "meets_target": bool(package["values_match"] and min(ratio_full, ratio_same) >= TARGET_RATIO),
     }
     out = args.out or OUT_DIR / ("ingest-quick.json" if args.quick else "ingest.json")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    text = json.dumps(result, indent=2)
-    out.write_text(text + "\n")
-    print(text)
+    write_json(result, out, sort_keys=False)
+    print(json.dumps(result, indent=2))
     return result
 
 

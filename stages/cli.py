@@ -61,6 +61,7 @@ def _cmd_preview(args: argparse.Namespace) -> int:
 def _cmd_pin(args: argparse.Namespace) -> int:
     """Rewrite a manifest's ``files:`` list with the sha256 of every file its globs find under the mocap root;
     every other line (comments included) stays as it is."""
+    from pipeline.io.files import write_text
     from pipeline.io.manifests import pinned_files, with_files
 
     path = Path(args.manifest)
@@ -73,7 +74,7 @@ def _cmd_pin(args: argparse.Namespace) -> int:
     text = path.read_text(encoding="utf-8")
     pinned = with_files(text, files)
     if pinned != text:
-        path.write_text(pinned, encoding="utf-8")
+        write_text(pinned, path)
     print(f"pinned {len(files)} files in {path}{'' if pinned != text else ' (unchanged)'}")
     return 0
 

@@ -246,6 +246,7 @@ def test_one_verdict_per_generator_family():
     assert verdict_lines({"skipped": "no labelled real train or held-out gaits"})[0][1].startswith("no emotion")
 
 
+@pytest.mark.slow  # two whole audits with their plots (~12 s)
 def test_the_page_says_so_without_a_classifier_or_without_synthetic_gaits(tmp_path):
     frame, meta = _frame()
     only_train = frame.assign(split=["train" if k == "real" else s for k, s in zip(frame["kind"], frame["split"])])

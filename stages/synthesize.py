@@ -18,15 +18,8 @@ from pipeline.io.files import write_csv, write_json, write_parquet
 from pipeline.io.gait_table import read_gaits
 from pipeline.publish.table import synthetic_table
 from pipeline.synth.plan import recipe_json
-from pipeline.synth.synthesis import (
-    PLAN_COLUMNS,
-    SynthesisConfig,
-    SynthesisPlan,
-    placed_root_paths,
-    plan_rows,
-    synthesis_report,
-    synthesize,
-)
+from pipeline.synth.synthesis import (PLAN_COLUMNS, SynthesisConfig, SynthesisPlan, placed_root_paths, plan_rows,
+                                      synthesis_report, synthesize)
 from pipeline.viz.stick_figures import render_trajectories
 from stages.common import REPO, SKELETON, load_params
 from stages.configs import annotate_config, placement_config

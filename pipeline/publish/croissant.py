@@ -16,7 +16,6 @@ This module knows the published directory's files and their schema, not how gait
 from __future__ import annotations
 
 import copy
-import json
 import math
 from collections.abc import Mapping
 from pathlib import Path

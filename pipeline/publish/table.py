@@ -12,7 +12,6 @@ Columns, one row per gait:
 
 from __future__ import annotations
 
-import json
 from collections import Counter
 from collections.abc import Sequence
 from typing import Any

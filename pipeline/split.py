@@ -1,7 +1,10 @@
 """Train/val/test assignment by clip: no window of a clip in two splits, stratified by dominant emotion.
 
 Deterministic: clips are sorted, then shuffled with a seeded generator inside each stratum; each stratum
-gives round(fraction * n) clips to val and test (a stratum too small for that stays in train).
+gives round(fraction * n) clips to val and test (a stratum too small for that stays in train). Labelled strata
+(every stratum but ``unlabelled``) give at least ``min_held_out`` clips to each of val and test where that leaves
+at least as many in train: the recognisers' held-out figures need more than one clip of every emotion, and an
+emotion with one test clip scores one recording, not the emotion.
 """
 
 from __future__ import annotations
@@ -15,8 +18,24 @@ import numpy as np
 SPLITS = ("train", "val", "test")
 
 
-def assign_splits(clip_strata: dict[str, str], fractions: dict[str, float], seed: int) -> dict[str, str]:
-    """{clip_id: split} with about ``fractions`` of the clips of every stratum in each split."""
+UNLABELLED = "unlabelled"
+
+
+def held_out_counts(n: int, fractions: dict[str, float], min_held_out: int) -> tuple[int, int]:
+    """(val, test) clip counts of a stratum of n clips (``min_held_out`` 0: the plain fractions)."""
+    n_test = int(round(fractions["test"] * n))
+    n_val = int(round(fractions["val"] * n))
+    if min_held_out and n - 2 * min_held_out >= min_held_out:
+        n_test, n_val = max(n_test, min_held_out), max(n_val, min_held_out)
+    if n_test + n_val >= n:  # too small to hold out: keep it for training
+        n_test = n_val = 0
+    return n_val, n_test
+
+
+def assign_splits(clip_strata: dict[str, str], fractions: dict[str, float], seed: int,
+                  min_held_out: int = 0) -> dict[str, str]:
+    """{clip_id: split} with about ``fractions`` of the clips of every stratum in each split (and at least
+    ``min_held_out`` clips of every labelled stratum in val and in test, where it has enough)."""
     if abs(sum(fractions.values()) - 1.0) > 1e-9 or set(fractions) != set(SPLITS):
         raise ValueError(f"split fractions must be {SPLITS} summing to 1, found {fractions}")
     rng = np.random.default_rng(seed)
@@ -27,10 +46,7 @@ def assign_splits(clip_strata: dict[str, str], fractions: dict[str, float], seed
     for stratum in sorted(by_stratum):
         clips = by_stratum[stratum]
         order = [clips[i] for i in rng.permutation(len(clips))]
-        n_test = int(round(fractions["test"] * len(clips)))
-        n_val = int(round(fractions["val"] * len(clips)))
-        if n_test + n_val >= len(clips):  # too small to hold out: keep it for training
-            n_test = n_val = 0
+        n_val, n_test = held_out_counts(len(clips), fractions, 0 if stratum == UNLABELLED else min_held_out)
         for k, clip in enumerate(order):
             assignment[clip] = "test" if k < n_test else "val" if k < n_test + n_val else "train"
     return assignment

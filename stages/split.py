@@ -26,7 +26,7 @@ def main(params_path: Path | None = None, in_gaits: Path = IN_GAITS, out_gaits: 
     clip_ids = table.column("clip_id").to_pylist()
     strata = [dominant_emotion(None if e[0] != e[0] else e, EMOTIONS) for e in arrays["emotion"]]
     clip_strata = dict(zip(clip_ids, strata))  # all windows of a clip share its label
-    assignment = assign_splits(clip_strata, fractions, int(p["seed"]))
+    assignment = assign_splits(clip_strata, fractions, int(p["seed"]), int(p.get("min_held_out_clips", 0)))
     split = pa.array([assignment[c] for c in clip_ids], type=pa.string())
     write_parquet(table.append_column("split", split), out_gaits)
     report = split_report(clip_ids, table.column("source").to_pylist(), strata, assignment, fractions, int(p["seed"]))

@@ -44,3 +44,20 @@ def test_dominant_emotion_reports_ties_and_missing_labels():
     assert dominant_emotion(np.array([0.1, 0.6, 0.2, 0.1]), EMOTIONS) == "sad"
     assert dominant_emotion(np.array([0.4, 0.4, 0.1, 0.1]), EMOTIONS) == "tie"
     assert dominant_emotion(None, EMOTIONS) == "unlabelled"
+
+
+def test_min_held_out_keeps_two_labelled_clips_of_every_emotion_in_val_and_test(annotated):
+    table, clip_ids, strata = _strata(annotated)
+    clip_strata = dict(zip(clip_ids, strata))
+    assignment = assign_splits(clip_strata, FRACTIONS, seed=17, min_held_out=2)
+    plain = assign_splits(clip_strata, FRACTIONS, seed=17)
+    for emotion in EMOTIONS:
+        clips = [c for c, s in clip_strata.items() if s == emotion]
+        assert len(clips) >= 6, (emotion, len(clips))  # the default data has enough of every emotion
+        held = {sp: sum(assignment[c] == sp for c in clips) for sp in ("train", "val", "test")}
+        assert held["val"] >= 2 and held["test"] >= 2 and held["train"] >= 2, (emotion, held)
+    # with the plain fractions the rarer emotions have a single test clip: the rule is what changes that
+    assert min(sum(plain[c] == "test" for c, s in clip_strata.items() if s == e) for e in EMOTIONS) == 1
+    # the unlabelled stratum keeps its plain fractions
+    unlabelled = [c for c, s in clip_strata.items() if s == "unlabelled"]
+    assert [assignment[c] for c in unlabelled] == [plain[c] for c in unlabelled]

@@ -7,12 +7,13 @@ metrics), *.png (DVC plots) and index.html, which shows them all (pipeline/audit
 from __future__ import annotations
 
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
 import torch
 
-from pipeline.audit.metrics import ClassifierConfig
+from pipeline.audit.metrics import AuditConfig
 from pipeline.audit.report import verdict_lines
 from pipeline.audit.run import audit_directory
 from stages.common import REPO, load_params
@@ -25,15 +26,17 @@ def main(params_path: Path | None = None, directory: Path = PUBLISHED, out: Path
     params = load_params(params_path) if params_path else load_params()
     p = params["audit"]
     torch.set_num_threads(int(p.get("threads", 2)))
-    c = p["classifier"]
-    classifier = ClassifierConfig(hidden=int(c["hidden"]), epochs=int(c["epochs"]),
-                                  learning_rate=float(c["learning_rate"]), weight_decay=float(c["weight_decay"]),
-                                  seeds=tuple(int(s) for s in c["seeds"]))
     print(f"audit: {directory}", flush=True)
-    metrics = audit_directory(Path(directory), Path(out), classifier)
-    print(f"audit: {metrics['gaits']} gaits, {metrics['problem_count']} problems -> {out}")
+    started = time.perf_counter()
+    metrics = audit_directory(Path(directory), Path(out), AuditConfig.from_dict(p), progress=True)
+    print(f"audit: {metrics['gaits']} gaits, {metrics['problem_count']} problems -> {out} "
+          f"({time.perf_counter() - started:.0f} s)")
     for family, verdict in verdict_lines(metrics["recognisability"]):
         print(f"audit: {family}: {verdict}")
+    memo = metrics.get("memorisation", {})
+    if "check" in memo:
+        print(f"audit: nearest train window, median: synthetic {memo['synthetic']['median']:.3f} m, real held-out "
+              f"{memo['real_held_out']['median']:.3f} m")
     return metrics
 
 

@@ -1,7 +1,8 @@
 """The audit on a published directory with planted defects: every defect is named, nothing crashes, and the
 page shows every figure (slow: the full ingest). The page a person reads (fast, on hand-made gaits): a verdict
-per generator family whose numbers are the metrics', every cell formatted, every feature named in words. The
-scores on hand-made confusion matrices. (The audit of the real published dataset runs in tests/test_dvc_stage.py.)"""
+per generator family with both recognisers and their intervals, whose numbers are the metrics', every cell
+formatted, every feature named in words; the metrics' recognition and memorisation keys. The scores on hand-made
+confusion matrices (the recognisers on real gaits: tests/test_recognition.py). (The audit of the real published dataset runs in tests/test_dvc_stage.py.)"""
 
 from __future__ import annotations
 
@@ -15,16 +16,15 @@ import pyarrow as pa
 import pytest
 
 from pipeline.audit.metrics import (
-    ClassifierConfig,
+    AuditConfig,
+    clip_identity,
     describe_affective_feature,
     feature_descriptions,
     gait_problems,
     js_distance,
-    majority_baseline,
     normalised_entropy,
     parse_affective_name,
     recognisability,
-    scores,
 )
 from pipeline.audit.report import verdict_lines
 from pipeline.audit.run import audit_frame
@@ -33,6 +33,7 @@ from pipeline.core.skeleton import canonical_skeleton
 from pipeline.ops.features import AFFECTIVE_FEATURES, AFFECTIVE_NAMES, MOVEMENT_NAMES
 from pipeline.dataset import write_sha256sums
 from pipeline.io.gait_table import array_column, column_array
+from pipeline.recognition import RECOGNISERS, RecogniserConfig, majority_baseline, scores
 from stages.audit import main as audit
 from tests.test_croissant_provenance import _publish, _published_table
 
@@ -109,7 +110,7 @@ def test_balanced_accuracy_and_majority_baseline_on_a_hand_made_matrix():
 
 # ------------------------------------------------------------------------------------ the page, hand-made gaits
 
-FRAMES = 8
+FRAMES = 20  # a recogniser reads 10 frames or more
 
 
 def _gaits(kind: str, split: str, classes: list[int | None], rng, shift: float, **extra) -> list[dict]:
@@ -117,14 +118,17 @@ def _gaits(kind: str, split: str, classes: list[int | None], rng, shift: float, 
     for i, c in enumerate(classes):
         emotion = None if c is None else np.eye(4, dtype=np.float32)[c]
         affective = rng.normal(1.0, 0.3, (FRAMES, 18)).astype(np.float32)
+        positions = rng.normal(0.0, 0.3, (FRAMES, 21, 3)).astype(np.float32)
         if c is not None:
-            affective[:, c] += shift  # an emotion shows in one feature
+            affective[:, c] += shift  # an emotion shows in one feature, and in one joint
+            positions[:, 1 + c, 1] += shift
         rows.append({"gait_id": f"{kind}-{split}-{i}", "kind": kind, "split": split,
                      "source": "mocap" if kind == "real" else "generator",
                      "label_method": None if c is None else ("actor_intended" if kind == "real" else
                                                              "generator_condition"),
                      "emotion": emotion, "contacts": np.zeros((FRAMES, 4), np.float32),
                      "phase": np.linspace(0, 6, FRAMES, dtype=np.float32), "affective": affective,
+                     "positions": positions, "heading": rng.uniform(-3, 3, FRAMES).astype(np.float32),
                      "movement": rng.normal(0.0, 0.1, (FRAMES, 5)).astype(np.float32), **extra})
     return rows
 
@@ -133,11 +137,14 @@ def _frame(generators: tuple[str, ...] | None = None) -> tuple[pd.DataFrame, dic
     rng = np.random.default_rng(0)
     rows = (_gaits("real", "train", [k % 4 for k in range(48)], rng, 1.5)
             + _gaits("real", "test", [k % 4 for k in range(16)], rng, 1.5)
+            + _gaits("real", "val", [k % 4 for k in range(8)], rng, 1.5)
             + _gaits("real", "train", [None] * 5, rng, 0.0))
     for g, name in enumerate(generators or ("",)):
         extra = {"generator": name} if generators else {}
         rows += _gaits("synthetic", "synthetic", [(k + g) % 4 for k in range(20)], rng, 0.5 * g, **extra)
     frame = pd.DataFrame(rows)
+    real = frame["kind"] == "real"  # two windows a clip: a clip's windows share a source file
+    frame["source_file"] = [f"clip{i // 2}.bvh" if r else None for i, r in enumerate(real)]
     frame["dominant"] = [dominant_emotion(e, EMOTIONS) for e in frame["emotion"]]
     frame.loc[1, "contacts"][3, 2] = 0.5  # two planted problems, so the problems table has rows
     frame.loc[2, "phase"][4] = 7.0
@@ -146,14 +153,15 @@ def _frame(generators: tuple[str, ...] | None = None) -> tuple[pd.DataFrame, dic
     return frame, meta
 
 
-CLASSIFIER = ClassifierConfig(epochs=40, seeds=(0, 1))
+AUDIT = AuditConfig(recognisers=RecogniserConfig.from_dict({"summary": {"epochs": 40}, "temporal": {"epochs": 5}}),
+                    seeds={"summary_mlp": (0, 1), "temporal_cnn": (0,)}, bootstrap_resamples=200)
 
 
 @pytest.fixture(scope="module")
 def page(tmp_path_factory):
     frame, meta = _frame()
     out = tmp_path_factory.mktemp("audit_page")
-    metrics = audit_frame(frame, meta, gait_problems(frame), "hand_made", out, CLASSIFIER)
+    metrics = audit_frame(frame, meta, gait_problems(frame), "hand_made", out, AUDIT)
     return metrics, (out / "index.html").read_text()
 
 
@@ -169,30 +177,69 @@ def _cells(page: str) -> list[str]:
 def test_the_page_leads_with_a_verdict_whose_numbers_are_the_metrics(page):
     metrics, text = page
     r = metrics["recognisability"]
-    (family,) = r["families"]
-    assert family == "generator (generator_condition)"
     verdicts = re.findall(r'<li class="verdict">(.*?)</li>', text, re.S)
     assert len(verdicts) == 1 and text.index("verdict") < text.index("<h2>Overview")
     line = html.unescape(re.sub(r"<[^>]+>", "", verdicts[0]))
-    syn, real, delta = r["synthetic"], r["real_test"], r["augmentation_delta"]
     pct = lambda x: f"{100 * x:.1f} %"  # noqa: E731
-    pts = lambda x: f"{'−' if round(100 * x, 1) < 0 else '+'}{abs(100 * x):.1f} pts"  # noqa: E731
-    expected = [f"{family}: 20 synthetic gaits recognised as intended: {pct(syn['accuracy_mean'])}",
-                f"chance {pct(0.25)}", f"majority class {pct(syn['majority_baseline']['accuracy'])}",
-                f"real test {pct(real['accuracy_mean'])})", f"balanced accuracy {pct(syn['balanced_accuracy_mean'])}",
-                f"(real test {pct(real['balanced_accuracy_mean'])})",
-                f"augmentation {pts(delta['accuracy'])} accuracy",
-                f"{pts(delta['balanced_accuracy'])} balanced accuracy",
-                f"{pts(delta['macro_f1'])} macro-F1 on real test"]
-    for part in expected:
-        assert part in line, (part, line)
+    ci = lambda c: f"(CI {100 * c[0]:.1f}–{100 * c[1]:.1f} %)"  # noqa: E731
+    pts = lambda x: f"{'−' if round(100 * x, 1) < 0 else '+'}{abs(100 * x):.1f}"  # noqa: E731
+    figures = [20, 100 * r["chance_accuracy"]]
+    for kind in RECOGNISERS:
+        entry = r["by_recogniser"][kind]
+        (family,) = entry["families"]
+        assert family == "generator (generator_condition)"
+        assert entry["families"][family]["synthetic"] == entry["synthetic"]  # one family: all synthetic gaits'
+        syn, real, delta, delta_ci = (entry["synthetic"], entry["real_held_out"], entry["augmentation_delta"],
+                                      entry["augmentation_delta_ci95"])
+        expected = [f"{entry['name']}: balanced accuracy {pct(syn['balanced_accuracy_mean'])} "
+                    f"{ci(syn['balanced_accuracy_ci95'])} vs real val + test {pct(real['balanced_accuracy_mean'])} "
+                    f"{ci(real['balanced_accuracy_ci95'])}, accuracy {pct(syn['accuracy_mean'])} (majority class "
+                    f"{pct(syn['majority_baseline']['accuracy'])})",
+                    f"{entry['name']} {pts(delta['macro_f1'])} pts (CI {pts(delta_ci['macro_f1'][0])} to "
+                    f"{pts(delta_ci['macro_f1'][1])} pts)"]
+        for part in expected:
+            assert part in line, (part, line)
+        figures += [100 * v for v in (syn["balanced_accuracy_mean"], *syn["balanced_accuracy_ci95"],
+                                      real["balanced_accuracy_mean"], *real["balanced_accuracy_ci95"],
+                                      syn["accuracy_mean"], syn["majority_baseline"]["accuracy"], delta["macro_f1"],
+                                      *delta_ci["macro_f1"])]
+    assert line.startswith("generator (generator_condition): 20 synthetic gaits recognised as intended — ")
+    assert "chance 25.0 %" in line and "Augmentation, macro-F1 on real val + test: " in line
     # every number in the line is one of the metrics' (as a percentage or points), none invented
-    figures = [100 * v for v in (syn["accuracy_mean"], 0.25, syn["majority_baseline"]["accuracy"],
-                                 real["accuracy_mean"], syn["balanced_accuracy_mean"],
-                                 real["balanced_accuracy_mean"], *delta.values())] + [20]
-    for found in re.findall(r"(?<![A-Za-z\d.])[−+]?\d+(?:\.\d+)?", line.split(":", 1)[1]):
+    for found in re.findall(r"(?<![A-Za-z\d.–])[−+]?\d+(?:\.\d+)?", line.split(":", 1)[1].replace("–", " ")):
         assert min(abs(abs(float(found.replace("−", "-"))) - abs(f)) for f in figures) < 0.051, found
-    assert r["families"][family]["synthetic"] == syn  # one family: its figures are all synthetic gaits'
+
+
+def test_the_audit_metrics_carry_both_recognisers_intervals_and_memorisation(page):
+    metrics, text = page
+    r = metrics["recognisability"]
+    assert r["recognisers"] == list(RECOGNISERS) and r["test_splits"] == ["val", "test"]
+    assert r["gaits"] == {"real_train": 48, "real_held_out": 24, "real_held_out_clips": 12, "synthetic": 20}
+    assert r["seeds"] == {"summary_mlp": [0, 1], "temporal_cnn": [0]}
+    for kind in RECOGNISERS:
+        entry = r["by_recogniser"][kind]
+        for key in ("real_held_out", "synthetic", "augmented_real_held_out"):
+            for s in ("accuracy", "balanced_accuracy", "macro_f1"):
+                lo, hi = entry[key][f"{s}_ci95"]
+                assert 0.0 <= lo <= hi <= 1.0 and {f"{s}_mean", f"{s}_std"} <= set(entry[key])
+            assert set(entry[key]["majority_baseline"]) == {"class", "accuracy", "balanced_accuracy", "macro_f1"}
+        assert entry["real_held_out"]["clips"] == 12 and entry["synthetic"]["clips"] == 20
+        for s, (lo, hi) in entry["augmentation_delta_ci95"].items():
+            assert -1.0 <= lo <= hi <= 1.0 and s in entry["augmentation_delta"]
+    memo = metrics["memorisation"]
+    assert memo["train_windows"] == 53 and memo["real_held_out"]["gaits"] == 24 and memo["synthetic"]["gaits"] == 20
+    for key in ("real_held_out", "synthetic"):
+        assert 0 < memo[key]["p5"] <= memo[key]["median"] <= memo[key]["p95"]
+    assert isinstance(memo["check"]["synthetic_median_ge_real_heldout_median"], bool)
+    assert "memorisation.png" in text and "No memorisation" in text
+
+
+def test_a_real_clip_is_its_source_file_and_a_synthetic_gait_its_own_unit():
+    frame, _ = _frame()
+    clips = clip_identity(frame)
+    real = (frame["kind"] == "real").to_numpy()
+    assert clips[0] == clips[1] == "mocap/clip0.bvh" and clips[2] != clips[1]
+    assert list(clips[~real]) == list(frame.loc[~real, "gait_id"])
 
 
 def test_no_cell_of_the_page_is_a_raw_list_or_dict(page):
@@ -235,14 +282,18 @@ def test_feature_words_come_from_the_definitions():
 
 def test_one_verdict_per_generator_family():
     frame, _ = _frame(generators=("autoregressive", "diffusion"))
-    r = recognisability(frame, EMOTIONS, CLASSIFIER)
-    assert set(r["families"]) == {"autoregressive", "diffusion"}
-    assert r["gaits"]["synthetic"] == 40 and all(f["gaits"] == 20 for f in r["families"].values())
+    r = recognisability(frame, EMOTIONS, AUDIT)
+    assert r["gaits"]["synthetic"] == 40
+    for kind in RECOGNISERS:
+        families = r["by_recogniser"][kind]["families"]
+        assert set(families) == {"autoregressive", "diffusion"} and all(f["gaits"] == 20 for f in families.values())
     lines = verdict_lines(r)
     assert [name for name, _ in lines] == ["autoregressive", "diffusion"]
     for name, line in lines:
-        acc = r["families"][name]["synthetic"]["accuracy_mean"]
-        assert f"recognised as intended: {100 * acc:.1f} %" in line
+        for kind in RECOGNISERS:
+            entry = r["by_recogniser"][kind]
+            bal = entry["families"][name]["synthetic"]["balanced_accuracy_mean"]
+            assert f"{entry['name']}: balanced accuracy {100 * bal:.1f} %" in line
     assert verdict_lines({"skipped": "no labelled real train or held-out gaits"})[0][1].startswith("no emotion")
 
 
@@ -252,7 +303,7 @@ def test_the_page_says_so_without_a_classifier_or_without_synthetic_gaits(tmp_pa
     only_train = frame.assign(split=["train" if k == "real" else s for k, s in zip(frame["kind"], frame["split"])])
     real_only = frame[frame["kind"] == "real"].reset_index(drop=True)
     for name, part in (("no_test", only_train), ("real_only", real_only)):
-        audit_frame(part, meta, [], name, tmp_path / name, CLASSIFIER)
+        audit_frame(part, meta, [], name, tmp_path / name, AUDIT)
         page = (tmp_path / name / "index.html").read_text()
         (verdict,) = re.findall(r'<li class="verdict">(.*?)</li>', page, re.S)
-        assert ("no emotion classifier" if name == "no_test" else "no labelled synthetic gaits") in verdict
+        assert ("no emotion recogniser" if name == "no_test" else "no labelled synthetic gaits") in verdict

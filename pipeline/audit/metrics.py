@@ -1,12 +1,13 @@
 """Audit of a published gait directory: value checks, label distributions, feature distributions, whether
-synthetic gaits look like their intended emotion, and whether they help an emotion classifier.
+synthetic gaits look like their intended emotion, and whether they help an emotion recogniser.
 
 Works on any published directory (``pipeline.dataset``). Everything here returns numbers or draws figures; the
 `audit` command (stages/audit.py) writes them with a self-contained HTML page. A gait's label for counting and
-classifying is its dominant emotion (``core.emotions.dominant_emotion``: ties are reported, never broken). The
-classifier's input is a per-gait summary: the mean and standard deviation over the frames of the affective and
-movement features. Synthetic gaits are audited per generator family (``generator_families``), alike for every
-family.
+recognising is its dominant emotion (``core.emotions.dominant_emotion``: ties are reported, never broken). The
+recognisers are ``pipeline.recognition``'s two independent kinds (a summary MLP, a temporal CNN), trained on the
+real train split here; their scores carry 95 % bootstrap intervals over clips. Synthetic gaits are audited per
+generator family (``generator_families``), alike for every family; how close they lie to the train windows is
+``audit.memorisation``'s.
 """
 
 from __future__ import annotations
@@ -14,21 +15,35 @@ from __future__ import annotations
 import json
 import math
 import re
+import time
 from collections import Counter
 from collections.abc import Sequence
+import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import pandas as pd
-import torch
-
-from pipeline.io.files import schema_meta
-from pipeline.dataset import directory_schema, load_dataframe, verify
 from pipeline.core.emotions import dominant_emotion
+from pipeline.dataset import directory_schema, load_dataframe, verify
+from pipeline.io.files import schema_meta
+from pipeline.recognition import (
+    RECOGNISER_NAMES,
+    RECOGNISERS,
+    SCORES,
+    RecogniserConfig,
+    RecognitionInputs,
+    bootstrap_delta_interval,
+    bootstrap_interval,
+    confusion,
+    fit_recogniser,
+    majority_baseline,
+    scores,
+    summary_features,
+)
 
 COLUMNS = ("gait_id", "kind", "split", "source", "label_method", "generator", "emotion", "emotion_per_frame",
-           "contacts", "phase", "affective", "movement", "source_file", "source_sha256", "t_start", "t_end",
+           "contacts", "phase", "positions", "heading", "affective", "movement", "source_file", "source_sha256", "t_start", "t_end",
            "checkpoint_sha256", "seed_gait_id", "trajectory_id", "emotion_recipe")
 LINEAGE = {"real": ("source_file", "source_sha256", "t_start", "t_end"),
            "synthetic": ("checkpoint_sha256", "seed_gait_id", "trajectory_id", "emotion_recipe")}
@@ -229,9 +244,9 @@ def feature_descriptions(affective_names: Sequence[str], movement_names: Sequenc
 
 
 def gait_summaries(frame: pd.DataFrame) -> np.ndarray:
-    """(gaits, 2 x features) mean and standard deviation over the frames of the affective and movement features."""
-    features = np.stack([np.concatenate([a, m], axis=-1) for a, m in zip(frame["affective"], frame["movement"])])
-    return np.concatenate([features.mean(1), features.std(1)], axis=-1).astype(np.float64)
+    """(gaits, 2 x features) mean and standard deviation over the frames of the affective and movement features
+    (the summary MLP's input, ``recognition.summary_features``)."""
+    return summary_features(np.stack(frame["affective"].to_numpy()), np.stack(frame["movement"].to_numpy()))
 
 
 def feature_distances(real: np.ndarray, synthetic: np.ndarray) -> np.ndarray:
@@ -241,74 +256,46 @@ def feature_distances(real: np.ndarray, synthetic: np.ndarray) -> np.ndarray:
     return w / np.maximum(real.std(0), 1e-12)
 
 
-# -------------------------------------------------------------------------------------------- classifier
+# ------------------------------------------------------------------------------------------- recognisers
 
 @dataclass(frozen=True)
-class ClassifierConfig:
-    hidden: int = 32
-    epochs: int = 300
-    learning_rate: float = 0.01
-    weight_decay: float = 1e-3
-    seeds: tuple[int, ...] = (0, 1, 2, 3, 4)
-    test_splits: tuple[str, ...] = ("test",)  # the real held-out gaits the recognisers are tested on
+class AuditConfig:
+    """The audit's recognition and memorisation settings (params.yaml ``audit``)."""
+
+    recognisers: RecogniserConfig = dataclasses.field(default_factory=RecogniserConfig)
+    seeds: dict[str, tuple[int, ...]] = dataclasses.field(default_factory=lambda: {"summary_mlp": (0, 1, 2, 3, 4),
+                                                                       "temporal_cnn": (0, 1, 2)})
+    test_splits: tuple[str, ...] = ("val", "test")  # the real held-out gaits the recognisers are tested on
+    bootstrap_resamples: int = 1000
+    memorisation_frame_stride: int = 2
+    memorisation_candidates: int = 8
+
+    @classmethod
+    def from_dict(cls, p: dict[str, Any]) -> "AuditConfig":
+        """From params.yaml ``audit`` (recognisers, seeds per recogniser, test_splits, bootstrap_resamples,
+        memorisation {frame_stride, candidates})."""
+        seeds = {k: tuple(int(s) for s in v) for k, v in p["seeds"].items()}
+        unknown = set(seeds) - set(RECOGNISERS)
+        if unknown:
+            raise KeyError(f"audit.seeds: expected recognisers among {', '.join(RECOGNISERS)}, found "
+                           f"{', '.join(sorted(unknown))}")
+        m = p.get("memorisation", {})
+        return cls(recognisers=RecogniserConfig.from_dict(p.get("recognisers")), seeds=seeds,
+                   test_splits=tuple(p.get("test_splits", cls.test_splits)),
+                   bootstrap_resamples=int(p.get("bootstrap_resamples", cls.bootstrap_resamples)),
+                   memorisation_frame_stride=int(m.get("frame_stride", cls.memorisation_frame_stride)),
+                   memorisation_candidates=int(m.get("candidates", cls.memorisation_candidates)))
 
 
-def train_classifier(x: np.ndarray, y: np.ndarray, classes: int, cfg: ClassifierConfig, seed: int):
-    """A small MLP on standardised summaries (full-batch Adam, class-balanced loss); returns predict(x) -> labels."""
-    torch.manual_seed(seed)
-    mean, std = x.mean(0), np.maximum(x.std(0), 1e-6)
-    xt = torch.from_numpy((x - mean) / std).float()
-    yt = torch.from_numpy(y).long()
-    model = torch.nn.Sequential(torch.nn.Linear(x.shape[1], cfg.hidden), torch.nn.ELU(),
-                                torch.nn.Linear(cfg.hidden, classes))
-    counts = torch.bincount(yt, minlength=classes).float()
-    weight = counts.sum() / (classes * counts.clamp_min(1.0))
-    optimiser = torch.optim.Adam(model.parameters(), lr=cfg.learning_rate, weight_decay=cfg.weight_decay)
-    for _ in range(cfg.epochs):
-        optimiser.zero_grad()
-        torch.nn.functional.cross_entropy(model(xt), yt, weight=weight).backward()
-        optimiser.step()
-
-    def predict(z: np.ndarray) -> np.ndarray:
-        with torch.no_grad():
-            return model(torch.from_numpy((z - mean) / std).float()).argmax(-1).numpy()
-    return predict
-
-
-def confusion(y: np.ndarray, predicted: np.ndarray, classes: int) -> np.ndarray:
-    out = np.zeros((classes, classes), dtype=int)
-    np.add.at(out, (y, predicted), 1)
-    return out
-
-
-SCORES = ("accuracy", "balanced_accuracy", "macro_f1")
-
-
-def scores(matrix: np.ndarray) -> dict[str, float]:
-    """Accuracy, balanced accuracy and macro-F1 of a confusion matrix (rows: truth, columns: predicted).
-
-    Balanced accuracy is the mean recall and macro-F1 the mean F1 over the classes present in the truth (a class
-    no tested gait has is left out of both, so neither rewards nor punishes its absence).
-    """
-    tp = np.diag(matrix).astype(np.float64)
-    truth, said = matrix.sum(1), matrix.sum(0)
-    present = truth > 0
-    f1 = np.where(truth + said > 0, 2 * tp / np.maximum(truth + said, 1), 0.0)
-    recall = tp / np.maximum(truth, 1)
-    return {"accuracy": round(float(tp.sum() / max(matrix.sum(), 1)), 4),
-            "balanced_accuracy": round(float(recall[present].mean()) if present.any() else float("nan"), 4),
-            "macro_f1": round(float(f1[present].mean()) if present.any() else float("nan"), 4)}
-
-
-def majority_baseline(matrix: np.ndarray, names: Sequence[str]) -> dict[str, Any]:
-    """The scores of always answering the most frequent true class of the tested gaits, from the confusion
-    matrix's row sums: the best accuracy any constant answer reaches on them (its balanced accuracy is 1 / the
-    classes present). Returns {"class", "accuracy", "balanced_accuracy", "macro_f1"}."""
-    truth = np.asarray(matrix).sum(1)
-    top = int(np.argmax(truth))
-    constant = np.zeros_like(np.asarray(matrix))
-    constant[:, top] = truth
-    return {"class": names[top], **scores(constant)}
+def clip_identity(frame: pd.DataFrame) -> np.ndarray:
+    """One clip identity per gait: a real gait's source and source file (its windows share them), any other gait
+    its own id (a synthetic gait is its own unit)."""
+    ids = frame["gait_id"].astype(str).to_numpy()
+    if "source_file" not in frame:
+        return ids
+    has_file = frame["source_file"].notna().to_numpy() & (frame["kind"] == "real").to_numpy()
+    files = (frame["source"].astype(str) + "/" + frame["source_file"].astype(str)).to_numpy()
+    return np.where(has_file, files, ids)
 
 
 def generator_families(frame: pd.DataFrame) -> dict[str, np.ndarray]:
@@ -330,39 +317,52 @@ def generator_families(frame: pd.DataFrame) -> dict[str, np.ndarray]:
     return {name: synthetic}
 
 
-def _summary(matrices: list[np.ndarray], names: Sequence[str]) -> dict[str, Any]:
-    """Mean and spread over seeds of each score, the majority baseline and the confusion summed over seeds."""
+def _summary(matrices: list[np.ndarray], names: Sequence[str], groups: np.ndarray, y: np.ndarray,
+             predictions: list[np.ndarray], resamples: int) -> dict[str, Any]:
+    """Mean and spread over seeds of each score, the 95 % interval of that mean resampling clips (every seed
+    scored on the same drawn clips), the majority baseline and the confusion summed over seeds."""
     per_seed = [scores(m) for m in matrices]
     out: dict[str, Any] = {}
+    interval = bootstrap_interval(groups, y, np.stack(predictions), len(names), resamples)
     for s in SCORES:
         out[f"{s}_mean"] = round(float(np.mean([p[s] for p in per_seed])), 4)
         out[f"{s}_std"] = round(float(np.std([p[s] for p in per_seed])), 4)
+        out[f"{s}_ci95"] = interval[s]
     summed = np.sum(matrices, axis=0)
     out["gaits"] = int(summed.sum() // len(matrices))
+    out["clips"] = int(len(set(groups)))
     out["majority_baseline"] = majority_baseline(summed, names)
     out["confusion_summed_over_seeds"] = summed.tolist()
     return out
 
 
-def _delta(augmented: dict[str, Any], real: dict[str, Any]) -> dict[str, float]:
-    return {s: round(augmented[f"{s}_mean"] - real[f"{s}_mean"], 4) for s in SCORES}
+def _delta(augmented: dict[str, Any], real: dict[str, Any], groups: np.ndarray, y: np.ndarray,
+           before: list[np.ndarray], after: list[np.ndarray], classes: int, resamples: int
+           ) -> tuple[dict[str, float], dict[str, list[float]]]:
+    """The change of each score's mean over seeds, and its 95 % interval (paired: the same clips drawn for both)."""
+    interval = bootstrap_delta_interval(groups, y, np.stack(before), np.stack(after), classes, resamples)
+    return {s: round(augmented[f"{s}_mean"] - real[f"{s}_mean"], 4) for s in SCORES}, interval
 
 
-def recognisability(frame: pd.DataFrame, names: Sequence[str], cfg: ClassifierConfig = ClassifierConfig()
-                    ) -> dict[str, Any]:
-    """Emotion classifiers on per-gait summaries, over ``cfg.seeds`` (mean and spread reported):
+def recognisability(frame: pd.DataFrame, names: Sequence[str], cfg: AuditConfig = AuditConfig(),
+                    inputs: RecognitionInputs | None = None, progress: bool = False) -> dict[str, Any]:
+    """Both independent recognisers (``recognition.RECOGNISERS``), each over its seeds (``cfg.seeds``; mean and
+    spread over seeds, 95 % bootstrap intervals over clips):
 
-    * trained on the real train split's labelled gaits, tested on the real held-out gaits (``cfg.test_splits``)
-      and on the synthetic gaits against their intended dominant emotion (confusion matrices summed over seeds);
-    * augmentation: trained on real train + synthetic gaits, tested on the same real held-out gaits.
+    * trained on the real train split's labelled gaits, tested on the labelled real held-out gaits
+      (``cfg.test_splits``, ``real_held_out``) and on the synthetic gaits against their intended dominant emotion
+      (``synthetic``);
+    * augmentation: trained on real train + synthetic gaits, tested on the same real held-out gaits
+      (``augmented_real_held_out``; ``augmentation_delta`` and its paired interval ``augmentation_delta_ci95``).
 
     Every test set reports accuracy, balanced accuracy, macro-F1 and its majority-class baseline. The synthetic
-    figures are given for all synthetic gaits together (``synthetic``, ``augmented_real_test``,
-    ``augmentation_delta``) and per generator family (``families``; one family: the same figures).
+    figures are given for all synthetic gaits together and per generator family (``families``; one family: the
+    same figures). ``inputs``: the frame's ``RecognitionInputs`` where already built.
     """
-    summaries = gait_summaries(frame)
+    inputs = RecognitionInputs.from_frame(frame) if inputs is None else inputs
     index = {n: i for i, n in enumerate(names)}
     label = np.array([index.get(d, -1) for d in frame["dominant"]])
+    groups = clip_identity(frame)
     real, synthetic = (frame["kind"] == "real").to_numpy(), (frame["kind"] == "synthetic").to_numpy()
     train = real & (frame["split"] == "train").to_numpy() & (label >= 0)
     test = real & frame["split"].isin(cfg.test_splits).to_numpy() & (label >= 0)
@@ -372,36 +372,53 @@ def recognisability(frame: pd.DataFrame, names: Sequence[str], cfg: ClassifierCo
     k = len(names)
     if not train.any() or not test.any():
         return {"skipped": "no labelled real train or held-out gaits"}
-    runs: dict[str, list[np.ndarray]] = {"real_test": [], "synthetic": [], "augmented_real_test": []}
-    family_runs: dict[str, dict[str, list[np.ndarray]]] = {
-        n: {"synthetic": [], "augmented_real_test": []} for n in families if separate}
-    for seed in cfg.seeds:
-        predict = train_classifier(summaries[train], label[train], k, cfg, seed)
-        runs["real_test"].append(confusion(label[test], predict(summaries[test]), k))
-        for mask, into in [(syn, runs)] + [(families[n], family_runs[n]) for n in family_runs]:
-            if mask.any():
-                into["synthetic"].append(confusion(label[mask], predict(summaries[mask]), k))
-                both = train | mask
-                augmented = train_classifier(summaries[both], label[both], k, cfg, seed)
-                into["augmented_real_test"].append(confusion(label[test], augmented(summaries[test]), k))
-    out: dict[str, Any] = {"features": int(summaries.shape[1]), "seeds": list(cfg.seeds),
-                           "test_splits": list(cfg.test_splits),
-                           "gaits": {"real_train": int(train.sum()), "real_test": int(test.sum()),
-                                     "synthetic": int(syn.sum())}, "classes": list(names)}
-    for name, matrices in runs.items():
-        if matrices:
-            out[name] = _summary(matrices, names)
-    out["chance_accuracy"] = round(1.0 / k, 4)
-    if "augmented_real_test" in out:
-        out["augmentation_delta"] = _delta(out["augmented_real_test"], out["real_test"])
-    out["families"] = {}
-    for name, mask in families.items():
-        entry: dict[str, Any] = {"gaits": int(mask.sum())}
-        if not separate:
-            entry.update({key: out[key] for key in ("synthetic", "augmented_real_test", "augmentation_delta")
-                          if key in out})
-        elif family_runs[name]["synthetic"]:
-            entry.update({key: _summary(m, names) for key, m in family_runs[name].items()})
-            entry["augmentation_delta"] = _delta(entry["augmented_real_test"], out["real_test"])
-        out["families"][name] = entry
+    out: dict[str, Any] = {"recognisers": list(RECOGNISERS), "seeds": {r: list(cfg.seeds[r]) for r in RECOGNISERS},
+                           "test_splits": list(cfg.test_splits), "features": int(2 * (inputs.affective.shape[-1]
+                                                                                       + inputs.movement.shape[-1])),
+                           "block_frames": cfg.recognisers.block_frames,
+                           "gaits": {"real_train": int(train.sum()), "real_held_out": int(test.sum()),
+                                     "real_held_out_clips": int(len(set(groups[test]))), "synthetic": int(syn.sum())},
+                           "classes": list(names), "chance_accuracy": round(1.0 / k, 4),
+                           "bootstrap_resamples": cfg.bootstrap_resamples, "by_recogniser": {}}
+    sets = {"all": syn, **({n: m for n, m in families.items()} if separate else {})}
+    held = inputs.select(test)
+    r_args = (cfg.bootstrap_resamples,)
+    for kind in RECOGNISERS:
+        seeds = cfg.seeds[kind]
+        predicted: dict[str, list[np.ndarray]] = {"real_held_out": []}
+        on_synthetic = {n: [] for n, m in sets.items() if m.any()}
+        augmented = {n: [] for n in on_synthetic}
+        for seed in seeds:
+            started = time.perf_counter()
+            recogniser = fit_recogniser(kind, inputs.select(train), label[train], cfg.recognisers, seed)
+            predicted["real_held_out"].append(recogniser.predict(held))
+            for name in on_synthetic:
+                on_synthetic[name].append(recogniser.predict(inputs.select(sets[name])))
+                both = train | sets[name]
+                again = fit_recogniser(kind, inputs.select(both), label[both], cfg.recognisers, seed)
+                augmented[name].append(again.predict(held))
+            if progress:
+                print(f"audit: {kind} seed {seed}: {time.perf_counter() - started:.1f} s", flush=True)
+
+        def summary(mask: np.ndarray, answers: list[np.ndarray]) -> dict[str, Any]:
+            return _summary([confusion(label[mask], a, k) for a in answers], names, groups[mask], label[mask],
+                            answers, *r_args)
+
+        entry: dict[str, Any] = {"name": RECOGNISER_NAMES[kind],
+                                 "real_held_out": summary(test, predicted["real_held_out"])}
+        per_set: dict[str, dict[str, Any]] = {}
+        for name in on_synthetic:
+            e = {"synthetic": summary(sets[name], on_synthetic[name]),
+                 "augmented_real_held_out": summary(test, augmented[name])}
+            e["augmentation_delta"], e["augmentation_delta_ci95"] = _delta(
+                e["augmented_real_held_out"], entry["real_held_out"], groups[test], label[test],
+                predicted["real_held_out"], augmented[name], k, *r_args)
+            per_set[name] = e
+        entry.update(per_set.get("all", {}))
+        entry["families"] = {}
+        for name, mask in families.items():
+            fam: dict[str, Any] = {"gaits": int(mask.sum())}
+            fam.update(per_set.get("all" if not separate else name, {}))
+            entry["families"][name] = fam
+        out["by_recogniser"][kind] = entry
     return out

@@ -154,28 +154,56 @@ def plot_feature_distances(distances: np.ndarray, feature_labels: Sequence[str],
     return _save(fig, path)
 
 
-CONFUSION_PANELS = (("real_test", "trained on real, tested on real held-out"),
+CONFUSION_PANELS = (("real_held_out", "trained on real, tested on real held-out"),
                     ("synthetic", "trained on real, tested on synthetic (intended emotion)"),
-                    ("augmented_real_test", "trained on real + synthetic, tested on real held-out"))
+                    ("augmented_real_held_out", "trained on real + synthetic, tested on real held-out"))
 
 
 def plot_confusions(recognition: dict[str, Any], names: Sequence[str], path: Path) -> Path:
-    panels = [(k, t) for k, t in CONFUSION_PANELS if k in recognition]
-    fig, axes = plt.subplots(1, max(1, len(panels)), figsize=(5 * max(1, len(panels)), 4.4), squeeze=False)
-    for ax, (key, title) in zip(axes.flat, panels):
-        matrix = np.asarray(recognition[key]["confusion_summed_over_seeds"])
-        ax.imshow(matrix / np.maximum(matrix.sum(1, keepdims=True), 1), cmap="Greens", vmin=0, vmax=1)
-        shares = matrix / np.maximum(matrix.sum(1, keepdims=True), 1)
-        for (i, j), v in np.ndenumerate(matrix):
-            ax.text(j, i, str(v), ha="center", va="center", fontsize=8,
-                    color="white" if shares[i, j] > 0.5 else "black")
-        ax.set_xticks(range(len(names)), names, fontsize=8)
-        ax.set_yticks(range(len(names)), names, fontsize=8)
-        ax.set_xlabel("predicted")
-        ax.set_ylabel("true")
-        r = recognition[key]
-        ax.set_title(f"{title}\naccuracy {percent(r['accuracy_mean'])}, balanced {percent(r['balanced_accuracy_mean'])}"
-                     f", macro-F1 {percent(r['macro_f1_mean'])}", fontsize=8)
+    """One row per recogniser, one panel per test (``CONFUSION_PANELS``), rows of each matrix shaded by share."""
+    recognisers = list(recognition["by_recogniser"].items())
+    cols = max(1, max(sum(k in entry for k, _ in CONFUSION_PANELS) for _, entry in recognisers))
+    fig, axes = plt.subplots(len(recognisers), cols, figsize=(5 * cols, 4.6 * len(recognisers)), squeeze=False)
+    for row, (_, entry) in enumerate(recognisers):
+        panels = [(k, t) for k, t in CONFUSION_PANELS if k in entry]
+        for ax in axes[row, len(panels):]:
+            ax.axis("off")
+        for ax, (key, title) in zip(axes[row], panels):
+            matrix = np.asarray(entry[key]["confusion_summed_over_seeds"])
+            shares = matrix / np.maximum(matrix.sum(1, keepdims=True), 1)
+            ax.imshow(shares, cmap="Greens", vmin=0, vmax=1)
+            for (i, j), v in np.ndenumerate(matrix):
+                ax.text(j, i, str(v), ha="center", va="center", fontsize=8,
+                        color="white" if shares[i, j] > 0.5 else "black")
+            ax.set_xticks(range(len(names)), names, fontsize=8)
+            ax.set_yticks(range(len(names)), names, fontsize=8)
+            ax.set_xlabel("predicted")
+            ax.set_ylabel("true")
+            r = entry[key]
+            ax.set_title(f"{entry['name']}: {title}\naccuracy {percent(r['accuracy_mean'])}, balanced "
+                         f"{percent(r['balanced_accuracy_mean'])}, macro-F1 {percent(r['macro_f1_mean'])}", fontsize=8)
+    return _save(fig, path)
+
+
+def plot_memorisation(distances: dict[str, np.ndarray], path: Path) -> Path:
+    """Histograms (density) of the distance to the nearest real train window: synthetic gaits, real held-out
+    windows; medians dashed."""
+    fig, ax = plt.subplots(figsize=(10, 3.8))
+    values = [v for v in distances.values() if len(v)]
+    top = max(float(np.quantile(v, 0.995)) for v in values) if values else 1.0
+    bins = np.linspace(0.0, max(top, 1e-3), 50)
+    for key, colour, label in (("synthetic", KIND_COLOURS["synthetic"], "synthetic gaits"),
+                               ("real_held_out", KIND_COLOURS["real"], "real held-out windows")):
+        v = distances.get(key, np.zeros(0))
+        if len(v):
+            ax.hist(np.minimum(v, bins[-1]), bins=bins, density=True, alpha=0.55, color=colour,
+                    label=f"{label} ({len(v):,}; median {np.median(v):.3f} m)")
+            ax.axvline(float(np.median(v)), color=colour, ls="--", lw=1)
+    ax.set_xlabel("distance to the nearest real train window: mean joint position error, heading frame (m)")
+    ax.set_ylabel("density")
+    ax.legend(fontsize=8)
+    ax.set_title("no memorisation: synthetic gaits should lie no closer to the train windows than real held-out "
+                 "ones", fontsize=10)
     return _save(fig, path)
 
 
@@ -221,6 +249,20 @@ def with_spread(mean: float, std: float) -> str:
     return f"{percent(mean)} ± {100 * std:.1f}"
 
 
+def interval(ci: Sequence[float] | None, as_points: bool = False) -> str:
+    """A 95 % interval: [0.407, 0.877] -> 'CI 40.7–87.7 %'; ``as_points`` (a change): 'CI −5.0 to +12.3 pts'."""
+    if not ci or any(v is None or not math.isfinite(v) for v in ci):
+        return f"CI {DASH}"
+    if as_points:
+        return f"CI {points(ci[0]).removesuffix(' pts')} to {points(ci[1])}"
+    return f"CI {100 * ci[0]:.1f}–{100 * ci[1]:.1f} %"
+
+
+def with_interval(r: dict[str, Any], score: str) -> str:
+    """'59.1 % (CI 40.7–87.7 %)': a score's mean over seeds and its 95 % interval over clips."""
+    return f"{percent(r[f'{score}_mean'])} ({interval(r.get(f'{score}_ci95'))})"
+
+
 # ---------------------------------------------------------------------------------------------- verdicts
 
 def held_out_name(recognition: dict[str, Any]) -> str:
@@ -229,29 +271,40 @@ def held_out_name(recognition: dict[str, Any]) -> str:
 
 
 def verdict_lines(recognition: dict[str, Any]) -> list[tuple[str, str]]:
-    """One (family, plain sentence) per generator family: how often its gaits are recognised as the emotion
-    they were generated for, against chance, the majority class and real held-out gaits, and what adding them
-    to the recogniser's training does on real held-out gaits. Without a classifier or synthetic gaits, one line
-    that says so."""
-    if "real_test" not in recognition:
-        return [("no verdict", f"no emotion classifier: {recognition.get('skipped', 'not run')}")]
-    real, held = recognition["real_test"], held_out_name(recognition)
-    chance = recognition["chance_accuracy"]
-    families = {n: f for n, f in recognition.get("families", {}).items() if "synthetic" in f}
-    if not families:
-        return [("no synthetic gaits", f"no labelled synthetic gaits to judge; {held} gaits are recognised at "
-                                       f"{percent(real['accuracy_mean'])} (chance {percent(chance)}, balanced "
-                                       f"accuracy {percent(real['balanced_accuracy_mean'])})")]
+    """One (family, plain sentence) per generator family: for each recogniser, how often the family's gaits are
+    recognised as the emotion they were generated for (balanced accuracy and accuracy with 95 % intervals over
+    clips), against real held-out gaits, chance and the majority class; and what adding them to the recogniser's
+    training does to macro-F1 on real held-out gaits (change and its interval). Without recognisers or synthetic
+    gaits, one line that says so."""
+    if "by_recogniser" not in recognition:
+        return [("no verdict", f"no emotion recogniser: {recognition.get('skipped', 'not run')}")]
+    held, chance = held_out_name(recognition), recognition["chance_accuracy"]
+    recognisers = recognition["by_recogniser"]
+    family_names = list(dict.fromkeys(n for e in recognisers.values() for n, f in e["families"].items()
+                                      if "synthetic" in f))
+    if not family_names:
+        parts = [f"{e['name']} {with_interval(e['real_held_out'], 'balanced_accuracy')}" for e in recognisers.values()]
+        return [("no synthetic gaits", f"no labelled synthetic gaits to judge; {held} gaits are recognised with "
+                                       f"balanced accuracy {', '.join(parts)} (chance {percent(chance)})")]
     lines = []
-    for name, family in families.items():
-        syn, delta = family["synthetic"], family.get("augmentation_delta")
-        text = (f"{number(family['gaits'])} synthetic gaits recognised as intended: {percent(syn['accuracy_mean'])} "
-                f"(chance {percent(chance)}, majority class {percent(syn['majority_baseline']['accuracy'])}, "
-                f"{held} {percent(real['accuracy_mean'])}); balanced accuracy {percent(syn['balanced_accuracy_mean'])} "
-                f"({held} {percent(real['balanced_accuracy_mean'])})")
-        if delta:
-            text += (f"; augmentation {points(delta['accuracy'])} accuracy, {points(delta['balanced_accuracy'])} "
-                     f"balanced accuracy, {points(delta['macro_f1'])} macro-F1 on {held}")
+    for name in family_names:
+        gaits, reads, changes = None, [], []
+        for entry in recognisers.values():
+            family = entry["families"].get(name, {})
+            if "synthetic" not in family:
+                continue
+            syn, real = family["synthetic"], entry["real_held_out"]
+            gaits = family["gaits"]
+            reads.append(f"{entry['name']}: balanced accuracy {with_interval(syn, 'balanced_accuracy')} vs {held} "
+                         f"{with_interval(real, 'balanced_accuracy')}, accuracy {percent(syn['accuracy_mean'])} "
+                         f"(majority class {percent(syn['majority_baseline']['accuracy'])})")
+            if "augmentation_delta" in family:
+                changes.append(f"{entry['name']} {points(family['augmentation_delta']['macro_f1'])} "
+                               f"({interval(family['augmentation_delta_ci95']['macro_f1'], as_points=True)})")
+        text = (f"{number(gaits)} synthetic gaits recognised as intended — " + "; ".join(reads)
+                + f"; chance {percent(chance)}")
+        if changes:
+            text += f". Augmentation, macro-F1 on {held}: " + ", ".join(changes)
         lines.append((name, text))
     return lines
 
@@ -277,32 +330,51 @@ def _table(rows: Sequence[dict[str, Any]], limit: int | None = None, css: str = 
 
 
 def _recognition_rows(recognition: dict[str, Any]) -> list[dict[str, str]]:
-    if "real_test" not in recognition:
+    if "by_recogniser" not in recognition:
         return []
     held = held_out_name(recognition)
     train = f"{number(recognition['gaits']['real_train'])} real train"
+    spread = "mean ± spread over seeds (95 % interval over clips)"
 
-    def row(tested: str, trained: str, r: dict[str, Any]) -> dict[str, str]:
+    def row(recogniser: str, tested: str, trained: str, r: dict[str, Any]) -> dict[str, str]:
         m = r["majority_baseline"]
-        return {"tested on": tested, "trained on": trained, "gaits": number(r["gaits"]),
-                "accuracy": with_spread(r["accuracy_mean"], r["accuracy_std"]),
-                "balanced accuracy": with_spread(r["balanced_accuracy_mean"], r["balanced_accuracy_std"]),
-                "macro-F1": with_spread(r["macro_f1_mean"], r["macro_f1_std"]),
+        return {"recogniser": recogniser, "tested on": tested, "trained on": trained,
+                "gaits (clips)": f"{number(r['gaits'])} ({number(r['clips'])})",
+                **{f"{label}: {spread}": f"{with_spread(r[f'{s}_mean'], r[f'{s}_std'])} ({interval(r.get(f'{s}_ci95'))})"
+                   for s, label in (("accuracy", "accuracy"), ("balanced_accuracy", "balanced accuracy"),
+                                    ("macro_f1", "macro-F1"))},
                 "majority class: accuracy · balanced · macro-F1":
                     f"{m['class']}: {percent(m['accuracy'])} · {percent(m['balanced_accuracy'])} · "
                     f"{percent(m['macro_f1'])}"}
 
-    rows = [row(held, train, recognition["real_test"])]
-    for name, family in recognition.get("families", {}).items():
-        if "synthetic" not in family:
-            continue
-        rows.append(row(f"{name}: synthetic, intended emotion", train, family["synthetic"]))
-        if "augmented_real_test" in family:
-            rows.append(row(held, f"{train} + {number(family['gaits'])} {name}", family["augmented_real_test"]))
-            d = family["augmentation_delta"]
-            rows.append({"tested on": held, "trained on": f"change from adding {name}", "gaits": "",
-                         "accuracy": points(d["accuracy"]), "balanced accuracy": points(d["balanced_accuracy"]),
-                         "macro-F1": points(d["macro_f1"]), "majority class: accuracy · balanced · macro-F1": ""})
+    rows = []
+    for kind, entry in recognition["by_recogniser"].items():
+        who = f"{entry['name']} ({number(len(recognition['seeds'][kind]))} seeds)"
+        rows.append(row(who, held, train, entry["real_held_out"]))
+        for name, family in entry.get("families", {}).items():
+            if "synthetic" not in family:
+                continue
+            rows.append(row(who, f"{name}: synthetic, intended emotion", train, family["synthetic"]))
+            if "augmented_real_held_out" in family:
+                rows.append(row(who, held, f"{train} + {number(family['gaits'])} {name}",
+                                family["augmented_real_held_out"]))
+                d, ci = family["augmentation_delta"], family["augmentation_delta_ci95"]
+                change = {f"{label}: {spread}": f"{points(d[s])} ({interval(ci[s], as_points=True)})"
+                          for s, label in (("accuracy", "accuracy"), ("balanced_accuracy", "balanced accuracy"),
+                                           ("macro_f1", "macro-F1"))}
+                rows.append({"recogniser": who, "tested on": held, "trained on": f"change from adding {name}",
+                             "gaits (clips)": "", **change, "majority class: accuracy · balanced · macro-F1": ""})
+    return rows
+
+
+def _memorisation_rows(memo: dict[str, Any]) -> list[dict[str, str]]:
+    rows = []
+    for key, label in (("synthetic", "synthetic gaits"), ("real_held_out", "real held-out windows"),
+                       *((f, f"synthetic: {f}") for f in memo.get("families", {}))):
+        d = memo["families"][key] if key in memo.get("families", {}) else memo.get(key, {})
+        if d.get("gaits"):
+            rows.append({"gaits": label, "count": number(d["gaits"]), "median (m)": number(d["median"]),
+                         "5th percentile (m)": number(d["p5"]), "95th percentile (m)": number(d["p95"])})
     return rows
 
 
@@ -346,11 +418,23 @@ def write_html(path: Path, title: str, metrics: dict[str, Any], problems: list[d
          "value": f"dominant emotions {number(js['dominant_classes'], 3)} · mean soft labels "
                   f"{number(js['mean_soft_labels'], 3)}" if js else DASH},
     ]
-    if "real_test" in recognition:
-        overview.append({"figure": "emotion recogniser", "value":
-                         f"MLP on {number(recognition['features'])} per-gait feature summaries, "
-                         f"{number(len(recognition['seeds']))} seed(s), "
-                         f"chance {percent(recognition['chance_accuracy'])}"})
+    if "by_recogniser" in recognition:
+        overview.append({"figure": "emotion recognisers", "value":
+                         f"summary MLP on {number(recognition['features'])} per-gait feature summaries; temporal "
+                         f"CNN on the frames of the root-relative heading-frame pose; both trained on real train "
+                         f"windows and {number(recognition['block_frames'])}-frame blocks of them; seeds "
+                         + " · ".join(f"{recognition['by_recogniser'][k]['name']} {number(len(v))}"
+                                      for k, v in recognition["seeds"].items())
+                         + f"; chance {percent(recognition['chance_accuracy'])}; tested on "
+                         f"{number(recognition['gaits']['real_held_out'])} {held_out_name(recognition)} gaits of "
+                         f"{number(recognition['gaits']['real_held_out_clips'])} clips"})
+    memo = metrics.get("memorisation")
+    if memo and "check" in memo:
+        ok = memo["check"]["synthetic_median_ge_real_heldout_median"]
+        overview.append({"figure": "no memorisation (distance to the nearest real train window, median)",
+                         "value": f"synthetic {number(memo['synthetic']['median'])} m, real held-out "
+                                  f"{number(memo['real_held_out']['median'])} m: "
+                                  + ("passed (synthetic no closer)" if ok else "FAILED (synthetic closer)")})
     if "transitions_by_start_end" in metrics:
         overview.append({"figure": "synthetic transitions",
                          "value": number(int(np.sum(metrics["transitions_by_start_end"])))})
@@ -364,14 +448,21 @@ def write_html(path: Path, title: str, metrics: dict[str, Any], problems: list[d
 table{{border-collapse:collapse;font-size:13px;margin:0.5em 0}}td,th{{border:1px solid #ccc;padding:3px 8px;
 text-align:left;vertical-align:top}}th{{background:#f3f3f3}}img{{max-width:100%}}figure{{margin:1.5em 0}}
 figcaption{{font-size:13px;color:#333}}ul.verdicts{{font-size:17px;line-height:1.5;padding-left:1.2em}}
-li.verdict{{margin:0.3em 0}}table.recognition td:nth-child(n+3){{white-space:nowrap}}</style></head><body>
+li.verdict{{margin:0.3em 0}}table.recognition td:nth-child(n+4){{white-space:nowrap}}</style></head><body>
 <h1>{html.escape(title)}</h1>
 <h2>Verdict</h2><ul class="verdicts">{verdicts}</ul>
 <h2>Overview</h2>{_table(overview)}
 <h2>Emotion recognition</h2>
 <p>Accuracy, balanced accuracy (mean recall over the emotions present) and macro-F1: mean ± spread in points over
-the seeds. The majority class column is the best any constant answer does on the same gaits.</p>
+the seeds, then the 95 % bootstrap interval of that mean resampling clips (a real clip's windows together; a
+synthetic gait is its own unit); a change's interval is paired (the same clips drawn for both). The
+majority class column is the best any constant answer does on the same gaits.</p>
 {_table(_recognition_rows(recognition), css="recognition")}
+<h2>No memorisation</h2>
+<p>Distance of each gait to its nearest real train-split window: mean joint position error of the root-relative
+poses in each frame's heading frame. Real held-out windows come from other clips than any train window, so their
+distances say how far a new recording lies; synthetic gaits should lie no closer.</p>
+{_table(_memorisation_rows(metrics.get("memorisation", {"families": {}})))}
 <h2>Problems ({len(problems)})</h2>{_table(problems, 200)}
 <h2>Labels</h2>{_table(_label_rows(metrics["labels"], names))}
 <h2>Features</h2>

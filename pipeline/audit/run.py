@@ -11,9 +11,11 @@ from typing import Any
 
 import pandas as pd
 
+from pipeline.audit.memorisation import memorisation
 from pipeline.audit.metrics import (
-    ClassifierConfig,
+    AuditConfig,
     all_problems,
+    generator_families,
     feature_descriptions,
     feature_distances,
     gait_summaries,
@@ -27,23 +29,33 @@ from pipeline.audit.report import (
     plot_feature_distances,
     plot_features,
     plot_labels,
+    plot_memorisation,
     plot_simplex_faces,
     plot_transitions,
     write_html,
 )
 from pipeline.core.skeleton import canonical_skeleton
 from pipeline.io.files import write_json
+from pipeline.recognition import RecognitionInputs
 
 
-def audit_directory(directory: Path, out: Path, classifier: ClassifierConfig) -> dict[str, Any]:
+def _every(stride: int) -> str:
+    """'every frame', 'every 2nd frame', 'every 3rd frame', 'every 4th frame'."""
+    if stride == 1:
+        return "every frame"
+    suffix = "th" if 10 <= stride % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(stride % 10, "th")
+    return f"every {stride}{suffix} frame"
+
+
+def audit_directory(directory: Path, out: Path, cfg: AuditConfig, progress: bool = False) -> dict[str, Any]:
     """Audit ``directory`` into ``out`` (metrics.json, *.png, index.html); returns the metrics."""
     directory = Path(directory)
     frame, meta = load_for_audit(directory)
-    return audit_frame(frame, meta, all_problems(directory, frame), directory.name, out, classifier)
+    return audit_frame(frame, meta, all_problems(directory, frame), directory.name, out, cfg, progress)
 
 
 def audit_frame(frame: pd.DataFrame, meta: dict[str, Any], problems: list[dict[str, str]], name: str, out: Path,
-                classifier: ClassifierConfig) -> dict[str, Any]:
+                cfg: AuditConfig, progress: bool = False) -> dict[str, Any]:
     """The audit of gaits already loaded (``metrics.load_for_audit``: one row per gait, the directory's schema
     metadata) and checked (``problems``), into ``out``; returns the metrics."""
     out = Path(out)
@@ -82,13 +94,24 @@ def audit_frame(frame: pd.DataFrame, meta: dict[str, Any], problems: list[dict[s
                         "distance in real standard deviations)."))
     figures.append((plot_features(frame, summaries, feature_labels, names, out / "features.png"),
                     "Affective and movement features (per-gait mean) by dominant emotion."))
-    recognition = recognisability(frame, names, classifier)
+    inputs = RecognitionInputs.from_frame(frame)
+    recognition = recognisability(frame, names, cfg, inputs, progress)
     metrics["recognisability"] = recognition
-    if "real_test" in recognition:
+    if "by_recogniser" in recognition:
         figures.append((plot_confusions(recognition, names, out / "confusion.png"),
-                        "Emotion classifier on per-gait feature summaries (confusion matrices summed over seeds): "
-                        "recognisability of real and synthetic gaits, and the same classifier trained with the "
-                        "synthetic gaits added (augmentation)."))
+                        "The two emotion recognisers (rows; confusion matrices summed over seeds): recognisability "
+                        "of real held-out and synthetic gaits, and the same recogniser trained with the synthetic "
+                        "gaits added (augmentation)."))
+    train = real & (frame["split"] == "train").to_numpy()
+    held_out = real & frame["split"].isin(cfg.test_splits).to_numpy()
+    if train.any() and (held_out.any() or synthetic.any()):
+        metrics["memorisation"], distances = memorisation(
+            inputs, train, held_out, synthetic, generator_families(frame), cfg.memorisation_frame_stride,
+            cfg.memorisation_candidates)
+        figures.append((plot_memorisation(distances, out / "memorisation.png"),
+                        "No memorisation: each gait's distance to its nearest real train window (mean joint "
+                        "position error of the root-relative poses in the heading frame, on "
+                        f"{_every(cfg.memorisation_frame_stride)}), synthetic gaits beside real held-out windows."))
     write_json(metrics, out / "metrics.json")
     write_html(out / "index.html", f"Audit of {name}", metrics, problems, figures, names)
     return metrics

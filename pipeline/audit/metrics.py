@@ -263,8 +263,8 @@ class AuditConfig:
     """The audit's recognition and memorisation settings (params.yaml ``audit``)."""
 
     recognisers: RecogniserConfig = dataclasses.field(default_factory=RecogniserConfig)
-    seeds: dict[str, tuple[int, ...]] = dataclasses.field(default_factory=lambda: {"summary_mlp": (0, 1, 2, 3, 4),
-                                                                       "temporal_cnn": (0, 1, 2)})
+    seeds: dict[str, tuple[int, ...]] = dataclasses.field(
+        default_factory=lambda: {"summary_mlp": (0, 1, 2, 3, 4), "temporal_cnn": (0, 1, 2)})
     test_splits: tuple[str, ...] = ("val", "test")  # the real held-out gaits the recognisers are tested on
     bootstrap_resamples: int = 1000
     memorisation_frame_stride: int = 2

@@ -82,6 +82,7 @@ def test_every_planted_defect_is_named_and_the_page_shows_every_figure(defective
     assert pngs and len(re.findall(r'src="data:image/png;base64,', page)) == len(pngs)
     assert planted["duplicate"] in page
     assert json.loads((tmp_path / "audit" / "metrics.json").read_text())["gaits"] == metrics["gaits"]
+    assert metrics["memorisation"]["left_out_not_finite"] == 1  # the gait with a NaN position: listed, not measured
 
 
 def test_label_measures():
@@ -214,7 +215,8 @@ def test_the_audit_metrics_carry_both_recognisers_intervals_and_memorisation(pag
     metrics, text = page
     r = metrics["recognisability"]
     assert r["recognisers"] == list(RECOGNISERS) and r["test_splits"] == ["val", "test"]
-    assert r["gaits"] == {"real_train": 48, "real_held_out": 24, "real_held_out_clips": 12, "synthetic": 20}
+    assert r["gaits"] == {"real_train": 48, "real_held_out": 24, "real_held_out_clips": 12, "synthetic": 20,
+                          "labelled_left_out_not_finite": 0}
     assert r["seeds"] == {"summary_mlp": [0, 1], "temporal_cnn": [0]}
     for kind in RECOGNISERS:
         entry = r["by_recogniser"][kind]

@@ -166,3 +166,14 @@ def test_the_config_comes_from_params_and_refuses_unknown_keys():
     with pytest.raises(KeyError, match="hiden"):
         RecogniserConfig.from_dict({"summary": {"hiden": 3}})
     assert RecogniserConfig.from_dict({}) == RecogniserConfig()
+
+
+def test_a_gait_with_a_nan_is_told_apart(real):
+    inputs = real["inputs"].select(np.arange(6))
+    assert inputs.finite().all()
+    positions = inputs.positions.copy()
+    positions[4, 30, 7, 2] = np.nan
+    planted = RecognitionInputs(positions, inputs.heading, inputs.affective, inputs.movement)
+    assert planted.finite().tolist() == [True, True, True, True, False, True]
+    with pytest.raises(ValueError, match="positions"):
+        RecognitionInputs(positions[:, :, :20], inputs.heading, inputs.affective, inputs.movement)

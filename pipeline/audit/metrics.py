@@ -363,11 +363,13 @@ def recognisability(frame: pd.DataFrame, names: Sequence[str], cfg: AuditConfig 
     index = {n: i for i, n in enumerate(names)}
     label = np.array([index.get(d, -1) for d in frame["dominant"]])
     groups = clip_identity(frame)
+    finite = inputs.finite()  # a gait with a NaN is a problem (listed), not something to recognise
     real, synthetic = (frame["kind"] == "real").to_numpy(), (frame["kind"] == "synthetic").to_numpy()
-    train = real & (frame["split"] == "train").to_numpy() & (label >= 0)
-    test = real & frame["split"].isin(cfg.test_splits).to_numpy() & (label >= 0)
-    syn = synthetic & (label >= 0)
-    families = {n: m & (label >= 0) for n, m in generator_families(frame).items()}
+    usable = (label >= 0) & finite
+    train = real & (frame["split"] == "train").to_numpy() & usable
+    test = real & frame["split"].isin(cfg.test_splits).to_numpy() & usable
+    syn = synthetic & usable
+    families = {n: m & usable for n, m in generator_families(frame).items()}
     separate = len(families) > 1  # one family: its figures are those of all synthetic gaits
     k = len(names)
     if not train.any() or not test.any():
@@ -377,7 +379,8 @@ def recognisability(frame: pd.DataFrame, names: Sequence[str], cfg: AuditConfig 
                                                                                        + inputs.movement.shape[-1])),
                            "block_frames": cfg.recognisers.block_frames,
                            "gaits": {"real_train": int(train.sum()), "real_held_out": int(test.sum()),
-                                     "real_held_out_clips": int(len(set(groups[test]))), "synthetic": int(syn.sum())},
+                                     "real_held_out_clips": int(len(set(groups[test]))), "synthetic": int(syn.sum()),
+                                     "labelled_left_out_not_finite": int(((label >= 0) & ~finite).sum())},
                            "classes": list(names), "chance_accuracy": round(1.0 / k, 4),
                            "bootstrap_resamples": cfg.bootstrap_resamples, "by_recogniser": {}}
     sets = {"all": syn, **({n: m for n, m in families.items()} if separate else {})}

@@ -102,12 +102,15 @@ def audit_frame(frame: pd.DataFrame, meta: dict[str, Any], problems: list[dict[s
                         "The two emotion recognisers (rows; confusion matrices summed over seeds): recognisability "
                         "of real held-out and synthetic gaits, and the same recogniser trained with the synthetic "
                         "gaits added (augmentation)."))
-    train = real & (frame["split"] == "train").to_numpy()
-    held_out = real & frame["split"].isin(cfg.test_splits).to_numpy()
+    finite = inputs.finite()  # a gait with a NaN is listed among the problems and left out here
+    train = real & (frame["split"] == "train").to_numpy() & finite
+    held_out = real & frame["split"].isin(cfg.test_splits).to_numpy() & finite
     if train.any() and (held_out.any() or synthetic.any()):
         metrics["memorisation"], distances = memorisation(
-            inputs, train, held_out, synthetic, generator_families(frame), cfg.memorisation_frame_stride,
+            inputs, train, held_out, synthetic & finite,
+            {n: m & finite for n, m in generator_families(frame).items()}, cfg.memorisation_frame_stride,
             cfg.memorisation_candidates)
+        metrics["memorisation"]["left_out_not_finite"] = int((~finite).sum())
         figures.append((plot_memorisation(distances, out / "memorisation.png"),
                         "No memorisation: each gait's distance to its nearest real train window (mean joint "
                         "position error of the root-relative poses in the heading frame, on "

@@ -68,6 +68,10 @@ class RecognitionInputs:
     def frames(self) -> int:
         return int(self.heading.shape[1])
 
+    def finite(self) -> np.ndarray:
+        """(N,) whether every value of a gait is finite (a recogniser given a NaN reads NaN: leave such gaits out)."""
+        return np.stack([np.isfinite(getattr(self, c)).reshape(len(self), -1).all(1) for c in COLUMNS]).all(0)
+
     def select(self, rows) -> "RecognitionInputs":
         """The gaits at ``rows`` (a boolean mask or indices)."""
         return RecognitionInputs(self.positions[rows], self.heading[rows], self.affective[rows], self.movement[rows])

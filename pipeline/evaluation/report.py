@@ -1,5 +1,5 @@
 """The evaluation report a person reads: eval.md (the tables) and the plots (error by horizon, rollout paths and
-speeds, stick figures of generated gaits), from the report ``pipeline.evaluation.run`` returns."""
+speeds, controllability, stick figures of generated gaits), from the report ``pipeline.evaluation.run`` returns."""
 
 from __future__ import annotations
 
@@ -59,8 +59,139 @@ def markdown(report: dict) -> str:
               "|---|---|---|---|"]
     for name, t in report["transitions"].items():
         lines.append(f"| {name} | {t['rising_fraction']:.0%} | {t['monotone_fraction']:.0%} | {t['mean_rise']:.3f} |")
+    if "controllability" in report:
+        lines += controllability_markdown(report["controllability"])
     lines += ["", "## Acceptance", ""] + [f"- {k}: {v}" for k, v in report["acceptance"].items()]
     return "\n".join(lines) + "\n"
+
+
+READERS = {"summary_mlp": "summary MLP", "temporal_cnn": "temporal CNN", "nearest_centroid": "nearest centroid"}
+
+
+def _pct(values) -> str:
+    return " / ".join(f"{v:.0%}" for v in values)
+
+
+def controllability_markdown(c: dict) -> list[str]:
+    kinds = c["recognisers"]
+    cfg = c["config"]
+    real = c["real_test"]
+    lines = ["", "## Controllability (issue 11)", "",
+             f"Seeds: {real['gaits']} labelled test gaits ({cfg['steps']} frames generated on a straight line "
+             f"after the prefix, read in blocks of {cfg['block']} frames). Readers: the independent recognisers "
+             f"({', '.join(READERS[k] for k in kinds)}; fitted on {c['train_labelled_gaits']} labelled train gaits, "
+             f"seed {cfg['seed']}, never in a generator's loss) and the nearest real emotion centroid of the affect "
+             "summary.", "",
+             "Condition sensitivity: per seed, the mean distance between the affect summaries of its four gaits "
+             "(one per one-hot emotion), as a fraction of the mean distance between the real emotion centroids "
+             "(goal >= 0.8).", "",
+             "| model | fraction of real separation | generated | real | per seed p10 / p50 / p90 |",
+             "|---|---|---|---|---|"]
+    for name, v in c["condition_sensitivity"].items():
+        lines.append(f"| {name} | {v['fraction_of_real']:.3f} | {v['generated_between_conditions']:.3f} | "
+                     f"{v['real_between_emotion_centroids']:.3f} | "
+                     f"{' / '.join(f'{x:.2f}' for x in v['per_seed_fraction_p10_p50_p90'])} |")
+    blocks = " / ".join(f"{a}-{b - 1}" for a, b in next(iter(c["style_retention"].values()))["blocks"])
+    cont = " / ".join(f"{a}-{b - 1}" for a, b in real["continuation_blocks"])
+    lines += ["", f"Style retention: seeds of emotion e generated under e, recognised as e per block of generated "
+              f"frames ({blocks}; goal >= 70 % in the last). Real reference: the real test windows' own blocks, and "
+              f"the real continuation after the prefix (window frames {cont}). Recognised as the condition: every "
+              "seed under every emotion (mismatched: the condition differs from the seed's emotion; chance 25 %).", "",
+              "| model | reader | recognised as seed emotion | balanced | as condition | as condition, mismatched |",
+              "|---|---|---|---|---|---|"]
+    for name, v in c["style_retention"].items():
+        for reader, kept in v["recognised_as_seed_emotion"].items():
+            lines.append(f"| {name} | {READERS.get(reader, reader)} | {_pct(kept['fraction'])} | "
+                         f"{_pct(kept['balanced'])} | {_pct(v['recognised_as_condition'][reader])} | "
+                         f"{_pct(v['recognised_as_condition_mismatched'][reader])} |")
+    for reader in real["window"]:
+        lines.append(f"| real | {READERS.get(reader, reader)} | window {_pct(real['window'][reader]['fraction'])}; "
+                     f"continuation {_pct(real['continuation'][reader]['fraction'])} | "
+                     f"{_pct(real['window'][reader]['balanced'])} | | |")
+    lines += ["", "Recognisability: accuracy, balanced accuracy, macro-F1 against the intended dominant emotion; "
+              "plan-like gaits are single-emotion rows of the synthesis plan (novel emotions, the plan's trajectories "
+              "and seeds), synthesized and annotated as the synthesize stage does.", "",
+              "| gaits | recogniser | accuracy | balanced accuracy | macro-F1 | majority baseline (acc / bal / F1) |",
+              "|---|---|---|---|---|---|"]
+    rows = [("real test", real["scores"])] + [(f"plan-like, {k}", v) for k, v in c["plan_like"].items()]
+    for label, sc in rows:
+        m = sc["majority_baseline"]
+        for kind in kinds:
+            r = sc[kind]
+            lines.append(f"| {label} ({sc['gaits']}) | {READERS[kind]} | {r['accuracy']:.3f} | "
+                         f"{r['balanced_accuracy']:.3f} | {r['macro_f1']:.3f} | {m['class']}: {m['accuracy']:.3f} / "
+                         f"{m['balanced_accuracy']:.3f} / {m['macro_f1']:.3f} |")
+    lines += ["", "Transitions (60 frames, one-hot A -> B from seeds of A): the recognisers' probability of B per "
+              "block, and the fraction of gaits where it rises from the first block to the last (goal >= 80 %); "
+              "control: the same seeds under a constant A.", "",
+              "| model | recogniser | P(B) by block | rising | control P(B) by block | control rising |",
+              "|---|---|---|---|---|---|"]
+    for name, t in c["transitions"].items():
+        for kind in kinds:
+            r = t[kind]
+            lines.append(f"| {name} | {READERS[kind]} | "
+                         f"{' / '.join(f'{v:.2f}' for v in r['end_probability_by_block'])} | "
+                         f"{r['rising_fraction']:.0%} | "
+                         f"{' / '.join(f'{v:.2f}' for v in r['control_end_probability_by_block'])} | "
+                         f"{r['control_rising_fraction']:.0%} |")
+    return lines
+
+
+def plot_controllability(report: dict, path: Path) -> None:
+    c = report["controllability"]
+    kinds = c["recognisers"]
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
+    names = list(c["condition_sensitivity"])
+    ax = axes[0]
+    ax.bar(names, [c["condition_sensitivity"][n]["fraction_of_real"] for n in names], color="tab:blue")
+    ax.axhline(1.0, color="tab:green", ls="--", label="real between-emotion separation")
+    ax.axhline(0.8, color="tab:red", ls=":", label="goal 0.8")
+    ax.set_ylabel("separation between conditions / real")
+    ax.set_title("condition sensitivity (same seed, four emotions)", fontsize=9)
+    ax.legend(fontsize=7)
+    ax = axes[1]
+    styles = {"summary_mlp": "-", "temporal_cnn": "--", "nearest_centroid": ":"}
+    for k, (name, v) in enumerate(c["style_retention"].items()):
+        x = np.arange(len(v["blocks"]))
+        for reader, kept in v["recognised_as_seed_emotion"].items():
+            ax.plot(x, kept["fraction"], styles.get(reader, "-"), marker="o", color=f"C{k}",
+                    label=f"{name}, {READERS.get(reader, reader)}")
+    real = c["real_test"]["window"]
+    for reader in kinds:
+        ax.plot(np.arange(len(real[reader]["fraction"])), real[reader]["fraction"], styles[reader], color="black",
+                marker="s", label=f"real windows, {READERS[reader]}")
+    ax.axhline(0.7, color="tab:red", ls=":")
+    ax.axhline(0.25, color="0.6", lw=0.8)
+    ax.set_xticks(x, [f"{a}-{b - 1}" for a, b in v["blocks"]])
+    ax.set_xlabel("generated frames")
+    ax.set_ylim(0, 1)
+    ax.set_ylabel("recognised as the seed's emotion")
+    ax.set_title("style retention (seed of e under e)", fontsize=9)
+    ax.legend(fontsize=6, ncol=2)
+    ax = axes[2]
+    for k, (name, t) in enumerate(c["transitions"].items()):
+        for kind in kinds:
+            x = np.arange(len(t["blocks"]))
+            ax.plot(x, t[kind]["end_probability_by_block"], styles[kind], marker="o", color=f"C{k}",
+                    label=f"{name}, {READERS[kind]} ({t[kind]['rising_fraction']:.0%} rising)")
+            ax.plot(x, t[kind]["control_end_probability_by_block"], styles[kind], color=f"C{k}", alpha=0.35,
+                    label=f"{name}, {READERS[kind]}, constant A")
+        ax.set_xticks(x, [f"{a}-{b - 1}" for a, b in t["blocks"]])
+    ax.set_xlabel("generated frames")
+    ax.set_ylabel("recogniser's P(end emotion B)")
+    ax.set_title("transitions A -> B", fontsize=9)
+    ax.legend(fontsize=6)
+    for a in axes:
+        a.grid(alpha=0.3)
+    fig.suptitle("Controllability on the test split (independent recognisers fitted on real train gaits)")
+    fig.tight_layout()
+    save_figure(fig, path, dpi=80, metadata={"Software": None})
+
+
+def preview_gaits(gaits, skeleton, path: Path) -> None:
+    """Generated gaits given as (title, positions (T, 21, 3)), one filmstrip row each."""
+    render_filmstrip([Motion(title=t, positions=np.asarray(p), parents=skeleton.parents, names=skeleton.names)
+                      for t, p in gaits], path, frames=10, dpi=70)
 
 
 def _num(value, spec: str) -> str:

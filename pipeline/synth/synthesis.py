@@ -133,10 +133,16 @@ def _annotate(positions: torch.Tensor, rotations: torch.Tensor, context_position
         contacts.append(ann["contacts"][prefix:].numpy())
         phase.append(theta.numpy())
         rate.append(phase_rate(theta).numpy())
-    offsets = torch.from_numpy(skeleton.offsets)
     return {"contacts": np.stack(contacts), "phase": stored_phase(np.stack(phase)), "phase_rate": np.stack(rate),
-            "phase_from_condition": np.array(fallback),
-            "affective": pose_affective_features(positions[..., 0, :], rotations, offsets, skeleton.parents).numpy(),
+            "phase_from_condition": np.array(fallback), **window_features(positions, rotations, skeleton, cfg)}
+
+
+def window_features(positions: torch.Tensor, rotations: torch.Tensor, skeleton: Skeleton,
+                    cfg: AnnotateConfig) -> dict[str, np.ndarray]:
+    """Affective (N, T, 18) and movement (N, T, 5) features of generated gaits (N, T, 21, 3 | 4), on the generated
+    window alone, as for real windows; also what the evaluation's recognisers read of generated frames."""
+    offsets = torch.from_numpy(skeleton.offsets)
+    return {"affective": pose_affective_features(positions[..., 0, :], rotations, offsets, skeleton.parents).numpy(),
             "movement": movement_features(positions, cfg.lowpass_frames).numpy()}
 
 

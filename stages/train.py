@@ -1,7 +1,8 @@
-"""DVC stage `train`: the autoregressive generator and its two ablations, trained on the train split, checked on val.
+"""DVC stage `train`: the autoregressive generator and its ablation(s), trained on the train split, checked on val.
 
-data/split/gaits.parquet -> data/models/{full,no_affect,no_root}.pt, reports/train.json (DVC metrics: final
-losses, checkpoint sha256, seconds), reports/train_curves.csv (DVC plots: loss per epoch and variant).
+data/split/gaits.parquet -> data/models/{full,no_affect}.pt (one per params variant), reports/train.json (DVC
+metrics: final losses, the style critic's figures, checkpoint sha256, seconds), reports/train_curves.csv (DVC
+plots: loss per epoch and variant).
 The variants (params.yaml ``train.variants``) train in parallel processes, ``train.threads`` torch threads each
 (pipeline/generators/autoregressive/fit.py).
 """
@@ -16,6 +17,7 @@ from typing import Any
 from pipeline.core.skeleton import load_skeleton
 from pipeline.generators.autoregressive.fit import (
     CURVE_COLUMNS,
+    critic_config,
     curve_rows,
     fit_variants,
     variant_configs,
@@ -38,7 +40,7 @@ def main(params_path: Path | None = None, in_gaits: Path = IN_GAITS, out_models:
     variants = variant_configs(p)
     start = time.perf_counter()
     results = fit_variants(in_gaits, variants, load_skeleton(SKELETON), int(p.get("parallel", 1)),
-                           int(p.get("progress_every", 25)))
+                           int(p.get("progress_every", 25)), critic_config(p))
     report: dict[str, Any] = {"seconds": round(time.perf_counter() - start, 1), "variants": {}}
     for res in results:
         path = out_models / f"{res['name']}.pt"

@@ -59,12 +59,21 @@ def test_transition_rounds_are_disjoint_and_never_repeat_a_pair():
 def test_the_default_plan_has_exactly_5000_gaits_with_their_recipes():
     trajectories = trajectories_from_spec(PARAMS["trajectories"], PARAMS["start_span_m"])
     emotions = novel_emotions(PARAMS["emotions"], np.eye(4), PARAMS["min_l1_to_training"], np.random.default_rng(0))
-    plan = build_plan(trajectories, emotions, ["a", "b", "c"], PARAMS["transition_rounds"], PARAMS["seed"])
+    pools = {0: ["h1", "h2"], 1: ["s1"], 2: ["a1", "a2"], 3: ["n1", "n2", "n3"], -1: ["h1"]}
+    plan = build_plan(trajectories, emotions, pools, PARAMS["transition_rounds"], PARAMS["seed"])
     assert len(trajectories) == 20 and len(plan) == 5000
     assert len({r["gait_id"] for r in plan}) == 5000 and len({r["plan_seed"] for r in plan}) == 5000
     kinds = [r["recipe"]["kind"] for r in plan]
     assert kinds.count("single") == 2000 and kinds.count("transition") == 3000
-    assert plan == build_plan(trajectories, emotions, ["a", "b", "c"], PARAMS["transition_rounds"], PARAMS["seed"])
+    assert plan == build_plan(trajectories, emotions, pools, PARAMS["transition_rounds"], PARAMS["seed"])
+    # every seed walks the emotion its gait starts with (a transition: its start emotion)
+    for r in plan:
+        start = emotions[r["recipe"]["emotion" if r["recipe"]["kind"] == "single" else "from"]]
+        assert r["seed_gait_id"] in pools[int(np.argmax(start))]
+    assert {r["seed_gait_id"] for r in plan} == {g for k, ids in pools.items() if k >= 0 for g in ids}
+    # an emotion without seeds falls back to the whole pool
+    fallback = build_plan(trajectories[:1], emotions, {0: ["h1"], -1: ["any"]}, 1, PARAMS["seed"])
+    assert {r["seed_gait_id"] for r in fallback} == {"h1", "any"}
     transition = next(r["recipe"] for r in plan if r["recipe"]["kind"] == "transition")
     per_frame = frame_emotions(transition, emotions, 60)
     assert np.allclose(per_frame.sum(-1), 1) and np.allclose(per_frame[0], emotions[transition["from"]])

@@ -19,6 +19,7 @@ import pyarrow as pa
 import torch
 
 from pipeline.annotate.annotation import AnnotateConfig, annotate_clip, stored_phase
+from pipeline.core.emotions import EMOTIONS
 from pipeline.core.skeleton import Skeleton
 from pipeline.generators.base import GeneratorFamily
 from pipeline.ops.contacts import phase_rate
@@ -31,7 +32,7 @@ from pipeline.synth.novelty import (
     training_nearest_distances,
     training_paths,
 )
-from pipeline.synth.plan import build_plan, frame_emotions
+from pipeline.synth.plan import build_plan, frame_emotions, seed_emotion
 from pipeline.synth.trajectories import Trajectory, onto, piece_from, start_pose, trajectories_from_spec
 
 
@@ -43,33 +44,35 @@ class SynthesisConfig:
     emotions: int  # novel emotion vectors from the simplex
     min_l1_to_training: float
     transition_rounds: int
-    seed_content: str  # seeds: test-split windows of this content
+    seed_content: str  # seeds: labelled windows of this content from ``seed_splits`` (plan.build_plan)
     trajectories: dict[str, dict[str, Any]]  # id -> {family, pieces, starts_within_m?}
     start_span_m: float
     novelty: dict[str, float]  # min_mean_distance_m, min_compared_m, piece_close_m
     path_ahead_m: float = 8.0
     batch: int = 1000
     frames: int = 60
+    seed_splits: tuple[str, ...] = ("train",)  # leak-free: the recognisers are tested on val + test clips
 
     @classmethod
     def from_dict(cls, d: dict[str, Any], frames: int) -> SynthesisConfig:
         return cls(seed=int(d["seed"]), emotions=int(d["emotions"]), min_l1_to_training=float(d["min_l1_to_training"]),
                    transition_rounds=int(d["transition_rounds"]), seed_content=str(d["seed_content"]),
                    trajectories=d["trajectories"], start_span_m=float(d["start_span_m"]), novelty=d["novelty"],
-                   path_ahead_m=float(d["path_ahead_m"]), batch=int(d["batch"]), frames=int(frames))
+                   path_ahead_m=float(d["path_ahead_m"]), batch=int(d["batch"]), frames=int(frames),
+                   seed_splits=tuple(d.get("seed_splits", ("train",))))
 
 
 @dataclass
 class SynthesisPlan:
     """Everything the plan needs, from the split gaits: the train labels, the novel emotions, the trajectories,
-    the seed pool (test-split gaits) and one row per synthetic gait."""
+    the seed pools (labelled gaits by dominant emotion) and one row per synthetic gait."""
 
     table: pa.Table
     arrays: dict[str, np.ndarray]
     labels: np.ndarray  # the train split's emotion labels
     emotions: np.ndarray
     trajectories: list[Trajectory]
-    seed_pool: list[str]
+    seed_pools: dict[int, list[str]]  # emotion index (-1: all) -> seed gait ids
     plan: list[dict[str, Any]]
 
     @classmethod
@@ -81,9 +84,13 @@ class SynthesisPlan:
         emotions = novel_emotions(cfg.emotions, labels, cfg.min_l1_to_training, np.random.default_rng([cfg.seed, 0]))
         trajectories = trajectories_from_spec(cfg.trajectories, cfg.start_span_m)
         gait_ids = table.column("gait_id").to_pylist()
-        seed_pool = [gait_ids[i] for i in np.flatnonzero((split == "test") & (content == cfg.seed_content))]
-        plan = build_plan(trajectories, emotions, seed_pool, cfg.transition_rounds, cfg.seed)
-        return cls(table, arrays, labels, emotions, trajectories, seed_pool, plan)
+        labelled = ~np.isnan(arrays["emotion"]).any(-1)
+        rows = np.flatnonzero(np.isin(split, cfg.seed_splits) & (content == cfg.seed_content) & labelled)
+        dominant = np.argmax(arrays["emotion"][rows], axis=-1)
+        seed_pools = {k: [gait_ids[i] for i in rows[dominant == k]] for k in range(arrays["emotion"].shape[-1])}
+        seed_pools[-1] = [gait_ids[i] for i in rows]
+        plan = build_plan(trajectories, emotions, seed_pools, cfg.transition_rounds, cfg.seed)
+        return cls(table, arrays, labels, emotions, trajectories, seed_pools, plan)
 
     @property
     def row_of(self) -> dict[str, int]:
@@ -195,7 +202,12 @@ def synthesis_report(work: SynthesisPlan, synthetic: dict[str, np.ndarray], cfg:
         "per_trajectory": {t.id: sum(r["trajectory_id"] == t.id for r in plan) for t in trajectories},
         "single_emotion_gaits": sum(r["recipe"]["kind"] == "single" for r in plan),
         "transition_gaits": sum(r["recipe"]["kind"] == "transition" for r in plan),
-        "seed_pool": {"split": "test", "content": cfg.seed_content, "gaits": len(work.seed_pool),
+        "seed_pool": {"splits": list(cfg.seed_splits), "content": cfg.seed_content, "labelled": True,
+                      "rule": "dominant emotion of the seed = dominant emotion the gait starts with",
+                      "gaits": len(work.seed_pools[-1]),
+                      "gaits_per_emotion": {EMOTIONS[k]: len(v) for k, v in work.seed_pools.items() if k >= 0},
+                      "rows_without_matching_seed": sum(not work.seed_pools.get(seed_emotion(r["recipe"], work.emotions))
+                                                        for r in plan),
                       "used": len({r["seed_gait_id"] for r in plan})},
         "checkpoint_sha256": model_sha256,
         "emotion_rows_max_abs_sum_error": float(max(np.abs(sums - 1).max(), np.abs(frame_sums - 1).max())),

@@ -15,6 +15,7 @@ import numpy as np
 import torch
 
 from pipeline.core.skeleton import Skeleton
+from pipeline.generators.autoregressive.critic import CriticConfig
 from pipeline.generators.autoregressive.network import GeneratorConfig, LossWeights
 from pipeline.generators.autoregressive.training import (
     GaitTensors,
@@ -24,8 +25,14 @@ from pipeline.generators.autoregressive.training import (
     train_generator,
 )
 from pipeline.io.gait_table import read_gaits
+from pipeline.ops.mirror import mirror_gait
 
 Variants = dict[str, tuple[GeneratorConfig, TrainConfig, LossWeights]]
+
+
+def critic_config(train: dict[str, Any]) -> CriticConfig:
+    """The style critic's config from a ``train`` mapping's ``critic`` section (defaults where absent)."""
+    return CriticConfig(**{k: v for k, v in (train.get("critic") or {}).items()})
 
 
 def variant_configs(train: dict[str, Any]) -> Variants:
@@ -43,17 +50,36 @@ def variant_configs(train: dict[str, Any]) -> Variants:
     return out
 
 
-def split_tensors(path: Path) -> tuple[GaitTensors, GaitTensors]:
+MIRRORED = ("positions", "rotations", "heading", "phase", "phase_rate", "affective", "movement", "emotion")
+
+
+def mirrored(arrays: dict[str, np.ndarray], rows: np.ndarray, skeleton: Skeleton) -> dict[str, np.ndarray]:
+    """The mirror images (ops.mirror) of the gaits ``rows``: the arrays GaitTensors reads."""
+    gait = mirror_gait({k: torch.from_numpy(np.ascontiguousarray(arrays[k][rows])) for k in MIRRORED}, skeleton)
+    return {k: v.numpy() for k, v in gait.items()}
+
+
+def split_tensors(path: Path, skeleton: Skeleton | None = None, mirror: bool = False
+                  ) -> tuple[GaitTensors, GaitTensors]:
+    """(train, val) gaits; with ``mirror``, the train gaits followed by their mirror images."""
     table, arrays = read_gaits(path)
     split = np.array(table.column("split").to_pylist())
-    return (GaitTensors.from_arrays(arrays, np.flatnonzero(split == "train")),
-            GaitTensors.from_arrays(arrays, np.flatnonzero(split == "val")))
+    train = np.flatnonzero(split == "train")
+    if mirror:
+        if skeleton is None:
+            raise ValueError("mirroring needs the skeleton")
+        images = mirrored(arrays, train, skeleton)
+        both = {k: np.concatenate([arrays[k][train], images[k]]) for k in MIRRORED}
+        train_tensors = GaitTensors.from_arrays(both)
+    else:
+        train_tensors = GaitTensors.from_arrays(arrays, train)
+    return train_tensors, GaitTensors.from_arrays(arrays, np.flatnonzero(split == "val"))
 
 
 def _train_variant(job: tuple) -> dict[str, Any]:
     """One variant, in its own process: returns the history and the checkpoint's bytes."""
-    name, model_cfg, cfg, weights, in_gaits, skeleton, every = job
-    train, val = split_tensors(in_gaits)
+    name, model_cfg, cfg, weights, critic_cfg, in_gaits, skeleton, every = job
+    train, val = split_tensors(in_gaits, skeleton, cfg.mirror)
     offsets = torch.from_numpy(skeleton.offsets).to(torch.float32)
     start = time.perf_counter()
 
@@ -64,18 +90,21 @@ def _train_variant(job: tuple) -> dict[str, Any]:
                   f"loss {row['train_total']:.3f}" + (f", val {val_total:.3f}" if val_total is not None else "")
                   + f" ({time.perf_counter() - start:.0f} s)", flush=True)
 
-    result = train_generator(train, val, offsets, skeleton.parents, model_cfg, cfg, weights, progress)
+    result = train_generator(train, val, offsets, skeleton.parents, model_cfg, cfg, weights, progress, critic_cfg)
     extra = {"variant": name, "configs": config_dicts(model_cfg, cfg, weights), "epochs": cfg.epochs,
              "train_gaits": len(train), "val_gaits": len(val)}
+    if result.critic is not None:
+        extra["critic"] = {"config": critic_cfg.to_dict(), "figures": result.critic_figures,
+                           "state_dict": {k: v.contiguous() for k, v in result.critic.state_dict().items()}}
     return {"name": name, "history": result.history, "seconds": time.perf_counter() - start,
-            "checkpoint": checkpoint_bytes(result.model, extra)}
+            "critic": result.critic_figures, "checkpoint": checkpoint_bytes(result.model, extra)}
 
 
-def fit_variants(in_gaits: Path, variants: Variants, skeleton: Skeleton, workers: int, progress_every: int
-                 ) -> list[dict[str, Any]]:
+def fit_variants(in_gaits: Path, variants: Variants, skeleton: Skeleton, workers: int, progress_every: int,
+                 critic: CriticConfig = CriticConfig()) -> list[dict[str, Any]]:
     """Train every variant (``workers`` processes at most); [{name, history, seconds, checkpoint (bytes)}]."""
     every = max(1, progress_every)
-    jobs = [(name, m, t, w, in_gaits, skeleton, every) for name, (m, t, w) in variants.items()]
+    jobs = [(name, m, t, w, critic, in_gaits, skeleton, every) for name, (m, t, w) in variants.items()]
     workers = max(1, min(workers, len(jobs)))
     if workers == 1:
         results = [_train_variant(job) for job in jobs]
@@ -88,7 +117,7 @@ def fit_variants(in_gaits: Path, variants: Variants, skeleton: Skeleton, workers
 def variant_summary(result: dict[str, Any]) -> dict[str, Any]:
     """A variant's report entry: seconds, epochs, final teacher forcing and its final train/val losses."""
     final = result["history"][-1]
-    return {"seconds": round(result["seconds"], 1), "epochs": final["epoch"],
+    return {"seconds": round(result["seconds"], 1), "epochs": final["epoch"], "critic": result.get("critic"),
             "final_teacher_forcing": final["teacher_forcing"],
             "train": {k[6:]: round(v, 5) for k, v in final.items() if k.startswith("train_")},
             "val": {k[4:]: round(v, 5) for k, v in final.items() if k.startswith("val_")}}

@@ -39,6 +39,7 @@ from torch import nn
 
 from pipeline.core.emotions import EMOTIONS
 from pipeline.core.skeleton import canonical_skeleton
+from pipeline.generators.autoregressive.critic import style_loss
 from pipeline.ops.features import affective_features
 from pipeline.ops.geometry import unit_direction, wrap_angle_atan2
 from pipeline.ops.kinematics import canonical_positions
@@ -87,6 +88,7 @@ class LossWeights:
     root: float = 1.0
     foot: float = 1.0
     versor: float = 1.0
+    style: float = 0.0  # the style critic's reading of the generated frames vs the condition (critic.py)
 
 
 def _mlp(sizes: Sequence[int], final_activation: bool = True) -> nn.Sequential:
@@ -211,32 +213,53 @@ class Losses:
     root: torch.Tensor
     foot: torch.Tensor
     total: torch.Tensor
+    style: torch.Tensor | None = None
     terms: dict[str, torch.Tensor] = field(default_factory=dict)
 
     def as_floats(self) -> dict[str, float]:
-        return {k: float(getattr(self, k).detach()) for k in ("motion", "pose", "affective", "root", "foot", "total")}
+        names = ("motion", "pose", "affective", "root", "foot", "total") + (("style",) if self.style is not None else ())
+        return {k: float(getattr(self, k).detach()) for k in names}
 
 
 def generator_losses(pred: dict[str, torch.Tensor], target: dict[str, torch.Tensor], model: EmotiveGaitNet,
-                     offsets: torch.Tensor, parents: Sequence[int], weights: LossWeights = LossWeights()) -> Losses:
-    """Paper Eqs. 8-13 over predicted frames. pred: q, q_raw (B, T, 21, 4), h, s, delta (B, T);
-    target: q (B, T, 21, 4), affective (B, T, 18), h, s, delta (B, T) and, for the foot term, feet (B, T, 4, 3)
-    world heel/toe positions, direction (B, T), start (B, 3) root position before the first predicted frame,
-    base_height (B,) (see ``world_feet``). Sums over joints / features, means over gaits and frames. Root features
-    are compared in standardised units (s is ~0.04 m/frame, δ ~0.3 rad)."""
+                     offsets: torch.Tensor, parents: Sequence[int], weights: LossWeights = LossWeights(),
+                     content_weight: torch.Tensor | None = None, critic: nn.Module | None = None,
+                     style_target: torch.Tensor | None = None) -> Losses:
+    """Paper Eqs. 8-13 over predicted frames, plus the style term. pred: q, q_raw (B, T, 21, 4), h, s, delta
+    (B, T); target: q (B, T, 21, 4), affective (B, T, 18), h, s, delta (B, T) and, for the foot term, feet
+    (B, T, 4, 3) world heel/toe positions, direction (B, T), start (B, 3) root position before the first predicted
+    frame, base_height (B,) (see ``world_feet``). Sums over joints / features, means over frames, then a mean over
+    gaits weighted by ``content_weight`` (B,) (a mismatched pair's ground truth shows another emotion than its
+    condition: it only keeps the walk plausible). Root features are compared in standardised units (s is
+    ~0.04 m/frame, δ ~0.3 rad). The style term (with ``critic`` and ``style_target`` (B, 4), NaN rows for no
+    condition) is the critic's cross-entropy against the condition, over the conditioned gaits."""
+    weight = torch.ones(pred["q"].shape[0], device=pred["q"].device) if content_weight is None else content_weight
+
+    def over_gaits(per_frame: torch.Tensor) -> torch.Tensor:
+        return (per_frame.mean(-1) * weight).sum() / weight.sum().clamp_min(1e-12)
+
     angle = quat_to_euler(pred["q"], "ZYX") - quat_to_euler(target["q"], "ZYX")
     wrapped = wrap_angle_atan2(angle)
     versor_norm = (torch.linalg.vector_norm(pred["q_raw"], dim=-1) - 1.0) ** 2
-    motion = (wrapped ** 2).sum((-1, -2)).mean() + weights.versor * versor_norm.sum(-1).mean()
+    motion = over_gaits((wrapped ** 2).sum((-1, -2))) + weights.versor * over_gaits(versor_norm.sum(-1))
     predicted_pose = travel_frame_positions(pred["q"], offsets, parents)
     target_pose = travel_frame_positions(target["q"], offsets, parents)
-    pose = ((predicted_pose - target_pose) ** 2).sum(-1)[..., 1:].sum(-1).mean()
+    pose = over_gaits(((predicted_pose - target_pose) ** 2).sum(-1)[..., 1:].sum(-1))
     # Huber, not squared: an area ratio with a nearly flat triangle (#6: hands and root almost in line) has a
     # heavy tail (99th percentile 13, maximum ~500) that would otherwise dominate the term.
-    affective = torch.nn.functional.huber_loss(affective_features(predicted_pose), target["affective"],
-                                               reduction="none", delta=1.0).sum(-1).mean()
-    root = sum((model.standardise(k, pred[k]) - model.standardise(k, target[k])).abs() for k in ROOT_FEATURES).mean()
-    foot = (world_feet(predicted_pose, pred["s"], pred["h"], target) - target["feet"]).abs().sum((-1, -2)).mean()
+    affective = over_gaits(torch.nn.functional.huber_loss(affective_features(predicted_pose), target["affective"],
+                                                          reduction="none", delta=1.0).sum(-1))
+    root = over_gaits(sum((model.standardise(k, pred[k]) - model.standardise(k, target[k])).abs()
+                          for k in ROOT_FEATURES))
+    foot = over_gaits((world_feet(predicted_pose, pred["s"], pred["h"], target) - target["feet"]).abs().sum((-1, -2)))
     total = (weights.motion * motion + weights.pose * pose + weights.affective * affective + weights.root * root
              + weights.foot * foot)
-    return Losses(motion=motion, pose=pose, affective=affective, root=root, foot=foot, total=total)
+    style = None
+    if critic is not None and style_target is not None:
+        conditioned = ~torch.isnan(style_target).any(-1)
+        if conditioned.any():
+            style = style_loss(critic(predicted_pose[conditioned]), style_target[conditioned])
+        else:
+            style = predicted_pose.sum() * 0.0
+        total = total + weights.style * style
+    return Losses(motion=motion, pose=pose, affective=affective, root=root, foot=foot, total=total, style=style)

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from pipeline.generators.autoregressive.critic import CriticConfig, StyleCritic, fit_critic
 from pipeline.ops.features import affective_features
 from pipeline.ops.geometry import path_direction, wrap_phase
 from pipeline.io.files import sha256_bytes
@@ -57,6 +58,10 @@ class TrainConfig:
     seed: int = 7
     threads: int = 2
     device: str = "auto"
+    labelled_share: float = 0.0  # share of each batch drawn from the labelled gaits (0: batches ignore labels)
+    mismatch: float = 0.0  # probability that a labelled gait is generated under another condition than its own
+    mismatch_content: float = 0.25  # weight of a mismatched pair's ground-truth (content) terms
+    mirror: bool = False  # train also on the mirror images of the train gaits (ops.mirror; label-preserving)
 
 
 @dataclass
@@ -132,10 +137,13 @@ def predicted_affective(q: torch.Tensor, offsets: torch.Tensor, parents: Sequenc
 
 
 def rollout(model: EmotiveGaitNet, gaits: GaitTensors, offsets: torch.Tensor, parents: Sequence[int], prefix: int,
-            teacher_forcing: float = 0.0, generator: torch.Generator | None = None) -> dict[str, torch.Tensor]:
+            teacher_forcing: float = 0.0, generator: torch.Generator | None = None,
+            condition: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
     """Predict frames prefix..T-1 autoregressively. Returns q, q_raw (B, T-prefix, 21, 4), h, s, delta (B, T-prefix).
 
     teacher_forcing: probability that a gait's input at a step is the ground-truth frame (drawn per gait and step).
+    condition: (B, 5) the condition of the predicted frames where it is not the gait's own (the prefix is read
+    under its own, as generation reads a seed).
     """
     frames = gaits.q.shape[1]
     steps = frames - prefix
@@ -156,6 +164,8 @@ def rollout(model: EmotiveGaitNet, gaits: GaitTensors, offsets: torch.Tensor, pa
                 mask = coin.view(-1, *([1] * (v.dim() - 1)))
                 fed[k] = torch.where(mask, truth[k], v)
         inputs = {**truth, **fed, "theta": theta[:, step:step + 1], "omega": omega[:, step:step + 1]}
+        if condition is not None:
+            inputs["condition"] = condition[:, None]
         current, hidden = model(inputs, hidden)
         outputs.append(current)
     return {k: torch.cat([o[k] for o in outputs], dim=1) for k in outputs[0]}
@@ -169,6 +179,64 @@ def targets(gaits: GaitTensors, prefix: int) -> dict[str, torch.Tensor]:
             "base_height": gaits.root_position[..., 1].mean(-1)}
 
 
+class BatchSampler:
+    """Seeded batches of train gaits: ``labelled_share`` of each batch from the labelled gaits, the rest from the
+    unlabelled ones, each pool walked in fresh permutations (share 0: one pool, every gait alike). The labelled
+    windows are few (a sixth of the train split) and they are the only ones the condition can be learnt from."""
+
+    def __init__(self, labelled: torch.Tensor, batch_size: int, share: float, generator: torch.Generator):
+        self.generator = generator
+        if share > 0.0 and labelled.any() and (~labelled).any():
+            self.pools = [torch.nonzero(labelled).flatten(), torch.nonzero(~labelled).flatten()]
+            n = min(batch_size, max(1, int(round(share * batch_size))))
+            self.sizes = [n, batch_size - n]
+        else:
+            self.pools, self.sizes = [torch.arange(len(labelled))], [batch_size]
+        self.orders = [pool[torch.randperm(len(pool), generator=generator)] for pool in self.pools]
+        self.cursors = [0] * len(self.pools)
+
+    def next(self) -> torch.Tensor:
+        out = []
+        for k, size in enumerate(self.sizes):
+            if size == 0:
+                continue
+            if self.cursors[k] + size > len(self.orders[k]):  # a new pass: a fresh permutation
+                pool = self.pools[k]
+                self.orders[k], self.cursors[k] = pool[torch.randperm(len(pool), generator=self.generator)], 0
+            out.append(self.orders[k][self.cursors[k]:self.cursors[k] + size])
+            self.cursors[k] += size
+        return torch.cat(out)
+
+
+def mismatched_conditions(condition: torch.Tensor, probability: float, generator: torch.Generator
+                          ) -> tuple[torch.Tensor, torch.Tensor]:
+    """(conditions of the predicted frames (B, 5), mismatched (B,) bool). A labelled gait is, with
+    ``probability``, generated under another emotion: half of them a one-hot of another emotion, half a random
+    mixture of the simplex (Dirichlet(1)), so the network learns to follow the condition, not the prefix."""
+    labelled = condition[:, -1] > 0.5
+    if probability <= 0.0:  # no draws: the run's random stream stays that of plain training
+        return condition, torch.zeros_like(labelled)
+    b, k = condition.shape[0], condition.shape[1] - 1
+    coin = torch.rand(b, generator=generator) < probability
+    own = condition[:, :k].argmax(-1)
+    other = (own + torch.randint(1, k, (b,), generator=generator)) % k
+    one_hot = torch.nn.functional.one_hot(other, k).to(condition.dtype)
+    gamma = -torch.log(torch.rand(b, k, generator=generator).clamp_min(1e-12))
+    mixture = gamma / gamma.sum(-1, keepdim=True)
+    pick_mixture = torch.rand(b, generator=generator) < 0.5
+    emotion = torch.where(pick_mixture[:, None], mixture, one_hot)
+    mismatched = coin.to(condition.device) & labelled
+    out = condition.clone()
+    out[:, :k] = torch.where(mismatched[:, None], emotion.to(condition.device), condition[:, :k])
+    return out, mismatched
+
+
+def style_targets(condition: torch.Tensor) -> torch.Tensor:
+    """(B, 5) conditions -> (B, 4) emotions the style term asks for (NaN rows: no condition, no style term)."""
+    labelled = condition[:, -1:] > 0.5
+    return torch.where(labelled, condition[:, :-1], torch.full_like(condition[:, :-1], float("nan")))
+
+
 def resolve_device(name: str) -> torch.device:
     if name == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
@@ -179,12 +247,16 @@ def resolve_device(name: str) -> torch.device:
 class TrainResult:
     model: EmotiveGaitNet
     history: list[dict[str, Any]]  # per epoch: train and validation losses, teacher forcing, learning rate
+    critic: StyleCritic | None = None
+    critic_figures: dict[str, Any] | None = None
 
 
 def train_generator(train: GaitTensors, val: GaitTensors, offsets: torch.Tensor, parents: Sequence[int],
                     model_cfg: GeneratorConfig, cfg: TrainConfig, weights: LossWeights,
-                    progress: Callable[[dict[str, Any]], None] | None = None) -> TrainResult:
-    """Seeded, deterministic training; validation is a free-running rollout (no teacher forcing) every epoch."""
+                    progress: Callable[[dict[str, Any]], None] | None = None,
+                    critic_cfg: CriticConfig = CriticConfig()) -> TrainResult:
+    """Seeded, deterministic training; validation is a free-running rollout (no teacher forcing) every epoch.
+    With a style weight, the style critic is fitted first on the labelled train gaits (critic.py)."""
     torch.set_num_threads(cfg.threads)
     torch.use_deterministic_algorithms(True)
     torch.manual_seed(cfg.seed)
@@ -192,6 +264,17 @@ def train_generator(train: GaitTensors, val: GaitTensors, offsets: torch.Tensor,
     draws = torch.Generator().manual_seed(cfg.seed)
     model = EmotiveGaitNet(model_cfg)
     model.set_statistics(train.affective, train.scalars())
+    critic, critic_figures = None, None
+    if weights.style > 0.0:
+        labelled = train.condition[:, -1] > 0.5
+        pose = travel_frame_positions(train.q[labelled], offsets.to(torch.float32), parents)
+        critic, critic_figures = fit_critic(pose, train.condition[labelled, :-1],
+                                            (model.affective_low, model.affective_high, model.affective_mean,
+                                             model.affective_std), critic_cfg)
+        critic.to(device)
+        torch.manual_seed(cfg.seed)  # the generator's initialisation does not depend on the critic's fit
+        model = EmotiveGaitNet(model_cfg)
+        model.set_statistics(train.affective, train.scalars())
     model.to(device)
     offsets = offsets.to(device=device, dtype=torch.float32)
     train_d, val_d = train.to(device), val.to(device)
@@ -199,19 +282,21 @@ def train_generator(train: GaitTensors, val: GaitTensors, offsets: torch.Tensor,
     schedule = torch.optim.lr_scheduler.ExponentialLR(optimiser, gamma=cfg.lr_decay)
     history = []
     per_epoch = cfg.batches_per_epoch or math.ceil(len(train_d) / cfg.batch_size)
-    order, cursor = torch.randperm(len(train_d), generator=draws), 0
+    sampler = BatchSampler(train.condition[:, -1] > 0.5, cfg.batch_size, cfg.labelled_share, draws)
     for epoch in range(cfg.epochs):
         model.train()
         tf = cfg.teacher_forcing_decay ** epoch
         sums: dict[str, float] = {}
         batches = 0
         for _ in range(per_epoch):
-            if cursor + cfg.batch_size > len(order):  # a new pass: a fresh permutation
-                order, cursor = torch.randperm(len(train_d), generator=draws), 0
-            batch = train_d.select(order[cursor:cursor + cfg.batch_size].to(device))
-            cursor += cfg.batch_size
-            pred = rollout(model, batch, offsets, parents, cfg.prefix, tf, draws)
-            losses = generator_losses(pred, targets(batch, cfg.prefix), model, offsets, parents, weights)
+            batch = train_d.select(sampler.next().to(device))
+            condition, mismatched = mismatched_conditions(batch.condition, cfg.mismatch, draws)
+            content = torch.where(mismatched, torch.full_like(condition[:, 0], cfg.mismatch_content),
+                                  torch.ones_like(condition[:, 0]))
+            pred = rollout(model, batch, offsets, parents, cfg.prefix, tf, draws,
+                           condition if bool(mismatched.any()) else None)
+            losses = generator_losses(pred, targets(batch, cfg.prefix), model, offsets, parents, weights,
+                                      content, critic, style_targets(condition))
             optimiser.zero_grad(set_to_none=True)
             losses.total.backward()
             torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.grad_clip)
@@ -221,7 +306,7 @@ def train_generator(train: GaitTensors, val: GaitTensors, offsets: torch.Tensor,
             batches += 1
         lr = optimiser.param_groups[0]["lr"]
         schedule.step()
-        val_losses = (evaluate_losses(model, val_d, offsets, parents, cfg.prefix, weights)
+        val_losses = (evaluate_losses(model, val_d, offsets, parents, cfg.prefix, weights, critic=critic)
                       if (epoch + 1) % cfg.validate_every == 0 or epoch + 1 == cfg.epochs else {})
         row = {"epoch": epoch + 1, "teacher_forcing": round(tf, 6), "learning_rate": lr,
                **{f"train_{k}": v / max(batches, 1) for k, v in sums.items()},
@@ -230,19 +315,24 @@ def train_generator(train: GaitTensors, val: GaitTensors, offsets: torch.Tensor,
         if progress:
             progress(row)
     model.cpu()
-    return TrainResult(model=model, history=history)
+    if critic is not None:
+        critic.cpu()
+    return TrainResult(model=model, history=history, critic=critic, critic_figures=critic_figures)
 
 
 @torch.no_grad()
 def evaluate_losses(model: EmotiveGaitNet, gaits: GaitTensors, offsets: torch.Tensor, parents: Sequence[int],
-                    prefix: int, weights: LossWeights, batch_size: int = 256) -> dict[str, float]:
-    """Loss terms of a free-running rollout, averaged over gaits."""
+                    prefix: int, weights: LossWeights, batch_size: int = 256, critic: StyleCritic | None = None
+                    ) -> dict[str, float]:
+    """Loss terms of a free-running rollout under the gaits' own conditions, averaged over gaits."""
     model.eval()
     totals: dict[str, float] = {}
     for start in range(0, len(gaits), batch_size):
         batch = gaits.select(slice(start, start + batch_size))
         pred = rollout(model, batch, offsets, parents, prefix)
-        for k, v in generator_losses(pred, targets(batch, prefix), model, offsets, parents, weights).as_floats().items():
+        losses = generator_losses(pred, targets(batch, prefix), model, offsets, parents, weights, critic=critic,
+                                  style_target=style_targets(batch.condition))
+        for k, v in losses.as_floats().items():
             totals[k] = totals.get(k, 0.0) + v * len(batch)
     return {k: v / max(len(gaits), 1) for k, v in totals.items()}
 

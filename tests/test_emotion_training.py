@@ -1,0 +1,173 @@
+"""The levers that make the generator follow its emotion condition (issue 11), on real labelled gaits: the style
+critic reads real held-out windows, mismatched conditions, labelled batches, mirrored training gaits, and a
+short training run under the style term that makes the condition readable in generated frames."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from pipeline.core.emotions import EMOTIONS
+from pipeline.generators.autoregressive.critic import CriticConfig, fit_critic, style_loss
+from pipeline.generators.autoregressive.fit import mirrored
+from pipeline.generators.autoregressive.network import (
+    EmotiveGaitNet,
+    GeneratorConfig,
+    LossWeights,
+    generator_losses,
+    travel_frame_positions,
+)
+from pipeline.generators.autoregressive.training import (
+    BatchSampler,
+    GaitTensors,
+    TrainConfig,
+    mismatched_conditions,
+    rollout,
+    style_targets,
+    targets,
+    train_generator,
+)
+
+TINY = GeneratorConfig(affect_layers=(8, 8, 4), movement_layers=(8, 8, 4), gru_hidden=32, versor_hidden=32,
+                       root_hidden=8)
+
+
+@pytest.fixture(scope="module")
+def labelled(annotated):
+    """Labelled real windows, alternately assigned to a fit and a held-out half by clip."""
+    table, arrays = annotated
+    rows = np.flatnonzero(~np.isnan(arrays["emotion"]).any(-1))
+    clips = np.array(table.column("clip_id").to_pylist())[rows]
+    order = {c: k for k, c in enumerate(sorted(set(clips)))}
+    held = np.array([order[c] % 3 == 0 for c in clips])
+    return arrays, rows[~held], rows[held]
+
+
+@pytest.fixture(scope="module")
+def offsets(skeleton):
+    return torch.from_numpy(skeleton.offsets).to(torch.float32)
+
+
+def _bounds(g: GaitTensors) -> tuple[torch.Tensor, ...]:
+    model = EmotiveGaitNet(TINY)
+    model.set_statistics(g.affective, g.scalars())
+    return model.affective_low, model.affective_high, model.affective_mean, model.affective_std
+
+
+def _recalls(said: torch.Tensor, truth: torch.Tensor) -> list[float]:
+    return [float((said[truth == k] == k).double().mean()) for k in range(len(EMOTIONS)) if (truth == k).any()]
+
+
+def test_the_critic_reads_held_out_real_windows_well_above_chance(labelled, offsets, skeleton):
+    arrays, fit_rows, held_rows = labelled
+    fit, held = GaitTensors.from_arrays(arrays, fit_rows), GaitTensors.from_arrays(arrays, held_rows)
+    pose = travel_frame_positions(fit.q, offsets, skeleton.parents)
+    critic, figures = fit_critic(pose, fit.condition[:, :4], _bounds(fit), CriticConfig(epochs=200))
+    assert figures["windows"] == len(fit_rows) and figures["crops"] == 4 * len(fit_rows)
+    with torch.no_grad():
+        said = critic(travel_frame_positions(held.q, offsets, skeleton.parents)[:, 18:]).argmax(-1)
+    truth = held.condition[:, :4].argmax(-1)
+    recalls = _recalls(said, truth)
+    assert len(recalls) >= 3 and np.mean(recalls) > 0.45, recalls  # chance: 0.25
+    assert not any(p.requires_grad for p in critic.parameters())  # frozen: the generator cannot move it
+
+
+def test_mismatched_conditions_change_only_labelled_gaits_and_stay_on_the_simplex(labelled):
+    arrays, fit_rows, _ = labelled
+    g = GaitTensors.from_arrays(arrays, fit_rows[:40])
+    unlabelled = torch.zeros(8, 5)
+    condition = torch.cat([g.condition, unlabelled])
+    out, mismatched = mismatched_conditions(condition, 1.0, torch.Generator().manual_seed(0))
+    assert mismatched[:40].all() and not mismatched[40:].any()
+    assert torch.equal(out[40:], unlabelled) and torch.equal(out[:, -1], condition[:, -1])
+    assert torch.allclose(out[:40, :4].sum(-1), torch.ones(40)) and (out[:40, :4] >= 0).all()
+    one_hot = (out[:40, :4] == 1.0).any(-1)
+    assert 0 < int(one_hot.sum()) < 40  # one-hots of another emotion and random mixtures
+    assert (out[:40][one_hot, :4].argmax(-1) != condition[:40][one_hot, :4].argmax(-1)).all()
+    # probability 0: nothing changes and no random number is drawn (plain training's stream is kept)
+    draws = torch.Generator().manual_seed(0)
+    same, none = mismatched_conditions(condition, 0.0, draws)
+    assert torch.equal(same, condition) and not none.any()
+    assert torch.equal(draws.get_state(), torch.Generator().manual_seed(0).get_state())
+    targets_ = style_targets(out)
+    assert torch.isnan(targets_[40:]).all() and torch.allclose(targets_[:40], out[:40, :4])
+
+
+def test_batches_hold_the_labelled_share_and_visit_every_gait():
+    labelled = torch.zeros(100, dtype=torch.bool)
+    labelled[::10] = True  # 10 labelled of 100
+    sampler = BatchSampler(labelled, 16, 0.5, torch.Generator().manual_seed(1))
+    batches = [sampler.next() for _ in range(12)]
+    assert all(len(b) == 16 and int(labelled[b].sum()) == 8 for b in batches)
+    seen = torch.cat(batches).unique()
+    assert set(torch.nonzero(labelled).flatten().tolist()) <= set(seen.tolist())
+    plain = BatchSampler(labelled, 16, 0.0, torch.Generator().manual_seed(1))
+    assert torch.equal(plain.next(), torch.randperm(100, generator=torch.Generator().manual_seed(1))[:16])
+
+
+def test_mirrored_training_gaits_keep_their_labels_and_swap_sides(labelled, skeleton):
+    arrays, fit_rows, _ = labelled
+    rows = fit_rows[:6]
+    images = mirrored(arrays, rows, skeleton)
+    assert np.array_equal(images["emotion"], arrays["emotion"][rows])
+    assert np.allclose(images["positions"][..., 0], -arrays["positions"][rows][..., [skeleton.names.index(
+        n.replace("left", "#").replace("right", "left").replace("#", "right")) for n in skeleton.names], 0])
+    back = mirrored({**arrays, **{k: np.concatenate([v, arrays[k][len(rows):]]) for k, v in images.items()}},
+                    np.arange(len(rows)), skeleton)
+    assert np.allclose(back["positions"], arrays["positions"][rows], atol=1e-5)
+
+
+def test_the_style_term_trains_the_generator_and_reaches_it_through_the_rollout(labelled, offsets, skeleton):
+    arrays, fit_rows, _ = labelled
+    g = GaitTensors.from_arrays(arrays, fit_rows)
+    pose = travel_frame_positions(g.q, offsets, skeleton.parents)
+    critic, _ = fit_critic(pose, g.condition[:, :4], _bounds(g), CriticConfig(epochs=200))
+    torch.manual_seed(0)
+    model = EmotiveGaitNet(TINY)
+    model.set_statistics(g.affective, g.scalars())
+    batch = g.select(slice(0, 8))
+    condition, _ = mismatched_conditions(batch.condition, 1.0, torch.Generator().manual_seed(2))
+    pred = rollout(model, batch, offsets, skeleton.parents, 18, condition=condition)
+    losses = generator_losses(pred, targets(batch, 18), model, offsets, skeleton.parents, LossWeights(style=1.0),
+                              torch.full((8,), 0.25), critic, style_targets(condition))
+    assert losses.style is not None and float(losses.style) > 0
+    losses.style.backward()
+    grads = {n: p.grad for n, p in model.named_parameters() if p.grad is not None and float(p.grad.abs().sum()) > 0}
+    assert any(n.startswith("gru") for n in grads) and any(n.startswith("enc_affect") for n in grads)
+    # a mismatched pair's content terms count with its weight: all at 0.25 is the same mean as all at 1
+    same = generator_losses(pred, targets(batch, 18), model, offsets, skeleton.parents, LossWeights(),
+                            torch.ones(8))
+    assert float(same.pose) == pytest.approx(float(losses.pose), rel=1e-5)
+    assert float(style_loss(torch.zeros(1, 4), torch.tensor([[1.0, 0, 0, 0]]))) == pytest.approx(np.log(4))
+
+
+def test_steps_on_the_style_term_move_the_critic_reading_towards_the_condition(labelled, offsets, skeleton):
+    """A few optimiser steps on the style term alone, on mismatched pairs (prefix of one emotion, condition of
+    another): the critic's probability of the condition in the free-running frames rises. The term points the
+    network at the condition through the whole autoregressive rollout."""
+    arrays, fit_rows, _ = labelled
+    g = GaitTensors.from_arrays(arrays, fit_rows)
+    pose = travel_frame_positions(g.q, offsets, skeleton.parents)
+    critic, _ = fit_critic(pose, g.condition[:, :4], _bounds(g), CriticConfig(epochs=200))
+    torch.manual_seed(0)
+    model = EmotiveGaitNet(TINY)
+    model.set_statistics(g.affective, g.scalars())
+    batch = g.select(slice(0, 16))
+    condition, mismatched = mismatched_conditions(batch.condition, 1.0, torch.Generator().manual_seed(3))
+    assert mismatched.all()
+    wanted = style_targets(condition)
+
+    def reading() -> tuple[torch.Tensor, torch.Tensor]:
+        pred = rollout(model, batch, offsets, skeleton.parents, 18, condition=condition)
+        logits = critic(travel_frame_positions(pred["q"], offsets, skeleton.parents))
+        return (torch.softmax(logits, -1) * wanted).sum(-1).mean(), style_loss(logits, wanted)
+
+    optimiser = torch.optim.Adam(model.parameters(), lr=3e-3)
+    before = float(reading()[0])
+    for _ in range(8):
+        optimiser.zero_grad()
+        reading()[1].backward()
+        optimiser.step()
+    after = float(reading()[0])
+    assert after > before + 0.05, (before, after)

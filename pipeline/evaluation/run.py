@@ -262,8 +262,8 @@ def plan_sample(work: SynthesisPlan, cfg: ControllabilityConfig) -> list[dict[st
 def preview_gaits(model: EmotiveGaitNet, arrays: dict[str, np.ndarray], content: np.ndarray,
                   test_rows: np.ndarray, test_labels: np.ndarray, work: SynthesisPlan, setup: ControlSetup,
                   offsets: torch.Tensor, parents, placement: PlacementConfig, prefix: int) -> dict[str, Any]:
-    """One seed (the first labelled test walk of the transition's start emotion, else the first labelled test
-    walk, else the first labelled test gait) on the preview trajectory under each one-hot emotion, and the same seed
+    """One seed (the labelled test walk of the transition's start emotion of median speed, else of any emotion,
+    else the first labelled test gait) on the preview trajectory under each one-hot emotion, and the same seed
     in the preview transition with its two constant emotions beside it:
     {"emotions": [(title, positions (T, 21, 3))], "transition": [...], "seed_row": row}."""
     steps = setup.control.steps
@@ -271,7 +271,11 @@ def preview_gaits(model: EmotiveGaitNet, arrays: dict[str, np.ndarray], content:
     walks = np.array([c == "walk" for c in content[test_rows]])
     candidates = np.flatnonzero((test_labels == start) & walks)
     candidates = candidates if len(candidates) else np.flatnonzero(walks)
-    pick = int(test_rows[candidates[0]] if len(candidates) else test_rows[0])
+    if len(candidates):  # the walk of typical speed (a clip's first window may be the first slow steps)
+        speed = arrays["movement"][test_rows[candidates], :, 1].mean(-1)
+        pick = int(test_rows[candidates[np.argmin(np.abs(speed - np.median(speed)))]])
+    else:
+        pick = int(test_rows[0])
     seeds = Seeds.from_arrays(arrays, np.array([pick]), prefix)
     trajectory = {t.id: t for t in work.trajectories}[setup.preview_trajectory]
     shape = torch.from_numpy(piece_from(trajectory.points, 0.0, setup.synthesis.path_ahead_m).astype(np.float32))

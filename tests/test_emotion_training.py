@@ -49,6 +49,15 @@ def offsets(skeleton):
     return torch.from_numpy(skeleton.offsets).to(torch.float32)
 
 
+@pytest.fixture(scope="module")
+def critic(labelled, offsets, skeleton):
+    """The style critic fitted on the fit half's windows: (critic, figures, fit gaits)."""
+    arrays, fit_rows, _ = labelled
+    fit = GaitTensors.from_arrays(arrays, fit_rows)
+    pose = travel_frame_positions(fit.q, offsets, skeleton.parents)
+    return (*fit_critic(pose, fit.condition[:, :4], _bounds(fit), CriticConfig(epochs=200)), fit)
+
+
 def _bounds(g: GaitTensors) -> tuple[torch.Tensor, ...]:
     model = EmotiveGaitNet(TINY)
     model.set_statistics(g.affective, g.scalars())
@@ -59,11 +68,10 @@ def _recalls(said: torch.Tensor, truth: torch.Tensor) -> list[float]:
     return [float((said[truth == k] == k).double().mean()) for k in range(len(EMOTIONS)) if (truth == k).any()]
 
 
-def test_the_critic_reads_held_out_real_windows_well_above_chance(labelled, offsets, skeleton):
+def test_the_critic_reads_held_out_real_windows_well_above_chance(labelled, critic, offsets, skeleton):
     arrays, fit_rows, held_rows = labelled
-    fit, held = GaitTensors.from_arrays(arrays, fit_rows), GaitTensors.from_arrays(arrays, held_rows)
-    pose = travel_frame_positions(fit.q, offsets, skeleton.parents)
-    critic, figures = fit_critic(pose, fit.condition[:, :4], _bounds(fit), CriticConfig(epochs=200))
+    critic, figures, _ = critic
+    held = GaitTensors.from_arrays(arrays, held_rows)
     assert figures["windows"] == len(fit_rows) and figures["crops"] == 4 * len(fit_rows)
     with torch.no_grad():
         said = critic(travel_frame_positions(held.q, offsets, skeleton.parents)[:, 18:]).argmax(-1)
@@ -118,11 +126,8 @@ def test_mirrored_training_gaits_keep_their_labels_and_swap_sides(labelled, skel
     assert np.allclose(back["positions"], arrays["positions"][rows], atol=1e-5)
 
 
-def test_the_style_term_trains_the_generator_and_reaches_it_through_the_rollout(labelled, offsets, skeleton):
-    arrays, fit_rows, _ = labelled
-    g = GaitTensors.from_arrays(arrays, fit_rows)
-    pose = travel_frame_positions(g.q, offsets, skeleton.parents)
-    critic, _ = fit_critic(pose, g.condition[:, :4], _bounds(g), CriticConfig(epochs=200))
+def test_the_style_term_trains_the_generator_and_reaches_it_through_the_rollout(critic, offsets, skeleton):
+    critic, _, g = critic
     torch.manual_seed(0)
     model = EmotiveGaitNet(TINY)
     model.set_statistics(g.affective, g.scalars())
@@ -131,7 +136,7 @@ def test_the_style_term_trains_the_generator_and_reaches_it_through_the_rollout(
     pred = rollout(model, batch, offsets, skeleton.parents, 18, condition=condition)
     losses = generator_losses(pred, targets(batch, 18), model, offsets, skeleton.parents, LossWeights(style=1.0),
                               torch.full((8,), 0.25), critic, style_targets(condition))
-    assert losses.style is not None and float(losses.style) > 0
+    assert losses.style is not None and float(losses.style.detach()) > 0
     losses.style.backward()
     grads = {n: p.grad for n, p in model.named_parameters() if p.grad is not None and float(p.grad.abs().sum()) > 0}
     assert any(n.startswith("gru") for n in grads) and any(n.startswith("enc_affect") for n in grads)
@@ -142,14 +147,11 @@ def test_the_style_term_trains_the_generator_and_reaches_it_through_the_rollout(
     assert float(style_loss(torch.zeros(1, 4), torch.tensor([[1.0, 0, 0, 0]]))) == pytest.approx(np.log(4))
 
 
-def test_steps_on_the_style_term_move_the_critic_reading_towards_the_condition(labelled, offsets, skeleton):
+def test_steps_on_the_style_term_move_the_critic_reading_towards_the_condition(critic, offsets, skeleton):
     """A few optimiser steps on the style term alone, on mismatched pairs (prefix of one emotion, condition of
     another): the critic's probability of the condition in the free-running frames rises. The term points the
     network at the condition through the whole autoregressive rollout."""
-    arrays, fit_rows, _ = labelled
-    g = GaitTensors.from_arrays(arrays, fit_rows)
-    pose = travel_frame_positions(g.q, offsets, skeleton.parents)
-    critic, _ = fit_critic(pose, g.condition[:, :4], _bounds(g), CriticConfig(epochs=200))
+    critic, _, g = critic
     torch.manual_seed(0)
     model = EmotiveGaitNet(TINY)
     model.set_statistics(g.affective, g.scalars())
@@ -171,3 +173,19 @@ def test_steps_on_the_style_term_move_the_critic_reading_towards_the_condition(l
         optimiser.step()
     after = float(reading()[0])
     assert after > before + 0.05, (before, after)
+
+
+def test_training_with_every_lever_is_reproducible_and_keeps_its_critic(annotated, offsets, skeleton):
+    _, arrays = annotated
+    rows = np.concatenate([np.flatnonzero(~np.isnan(arrays["emotion"]).any(-1))[::6],
+                           np.flatnonzero(np.isnan(arrays["emotion"]).any(-1))[::40]])
+    g = GaitTensors.from_arrays(arrays, rows)
+    cfg = TrainConfig(epochs=2, batch_size=16, batches_per_epoch=1, validate_every=2, seed=3, threads=1,
+                      device="cpu", labelled_share=0.5, mismatch=0.5)
+    runs = [train_generator(g, g.select(slice(0, 8)), offsets, skeleton.parents, TINY, cfg, LossWeights(style=2.0),
+                            critic_cfg=CriticConfig(epochs=50)) for _ in range(2)]
+    assert runs[0].history == runs[1].history and "train_style" in runs[0].history[-1]
+    assert "val_style" in runs[0].history[-1]
+    assert all(torch.equal(a, b) for a, b in zip(runs[0].model.state_dict().values(),
+                                                 runs[1].model.state_dict().values()))
+    assert runs[0].critic_figures == runs[1].critic_figures and runs[0].critic_figures["windows"] > 0

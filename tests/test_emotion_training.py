@@ -100,6 +100,11 @@ def test_mismatched_conditions_change_only_labelled_gaits_and_stay_on_the_simple
     assert torch.equal(draws.get_state(), torch.Generator().manual_seed(0).get_state())
     targets_ = style_targets(out)
     assert torch.isnan(targets_[40:]).all() and torch.allclose(targets_[:40], out[:40, :4])
+    sharp = style_targets(out, 3.0)  # one-hots stay, a mixture's dominant emotion takes more of the target
+    assert torch.equal(sharp[:40][one_hot], targets_[:40][one_hot])
+    assert torch.allclose(sharp[:40].sum(-1), torch.ones(40))
+    assert (sharp[:40][~one_hot].max(-1).values > targets_[:40][~one_hot].max(-1).values).all()
+    assert torch.equal(sharp[:40].argmax(-1), targets_[:40].argmax(-1))
 
 
 def test_batches_hold_the_labelled_share_and_visit_every_gait():
@@ -189,3 +194,26 @@ def test_training_with_every_lever_is_reproducible_and_keeps_its_critic(annotate
     assert all(torch.equal(a, b) for a, b in zip(runs[0].model.state_dict().values(),
                                                  runs[1].model.state_dict().values()))
     assert runs[0].critic_figures == runs[1].critic_figures and runs[0].critic_figures["windows"] > 0
+
+
+def test_guidance_one_is_plain_generation_and_more_guidance_moves_along_the_condition(labelled, offsets, skeleton):
+    from pipeline.evaluation.autoregressive import straight_path
+    from pipeline.generators.autoregressive.rollout import PlacementConfig, Seeds, generate, place_paths
+
+    arrays, fit_rows, _ = labelled
+    g = GaitTensors.from_arrays(arrays, fit_rows)
+    torch.manual_seed(1)
+    model = EmotiveGaitNet(TINY)
+    model.set_statistics(g.affective, g.scalars())
+    seeds = Seeds.from_arrays(arrays, fit_rows[:4], prefix=18)
+    paths = place_paths(straight_path(), seeds)
+    happy, sad = torch.zeros(4, 12, 4), torch.zeros(4, 12, 4)
+    happy[..., 0], sad[..., 1] = 1.0, 1.0
+
+    def run(emotions: torch.Tensor, w: float) -> torch.Tensor:
+        return generate(model, seeds, paths, emotions, offsets, skeleton.parents, PlacementConfig(guidance=w)).versors
+
+    assert torch.equal(run(happy, 1.0), generate(model, seeds, paths, happy, offsets, skeleton.parents).versors)
+    # guidance amplifies what the condition changes: the two emotions end up further apart
+    gap = {w: float((run(happy, w) - run(sad, w)).norm()) for w in (1.0, 2.0)}
+    assert gap[2.0] > 1.2 * gap[1.0], gap

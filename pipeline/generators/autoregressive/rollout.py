@@ -49,7 +49,7 @@ from pipeline.ops.geometry import (
     wrap_angle,
 )
 from pipeline.ops.kinematics import canonical_positions
-from pipeline.ops.quaternion import qmul, yaw
+from pipeline.ops.quaternion import qmul, qnormalize, yaw
 from pipeline.generators.autoregressive.training import GaitTensors, extrapolated_phase, predicted_affective
 
 
@@ -65,6 +65,7 @@ class PlacementConfig:
     stance_softness_m: float = 0.002
     drift_seconds: float = 1.0
     max_drift_deg: float = 15.0
+    guidance: float = 1.0  # classifier-free guidance w of the condition (1: none; see ``generate``)
 
     @classmethod
     def from_dict(cls, generate: dict[str, Any], fps: float) -> PlacementConfig:
@@ -146,6 +147,14 @@ def stance_step(previous_feet: torch.Tensor, feet: torch.Tensor, softness_m: flo
     return step * (length.clamp(max=max_step) / length.clamp_min(1e-9))
 
 
+def _guide(conditioned: dict[str, torch.Tensor], free: dict[str, torch.Tensor], w: float) -> dict[str, torch.Tensor]:
+    """Classifier-free guidance: free + w (conditioned - free) on the versors (renormalised) and root features.
+    w > 1 moves a frame further along what the condition changes; both branches are fed the guided frame."""
+    out = {k: free[k] + w * (conditioned[k] - free[k]) for k in ("q_raw", "h", "s", "delta")}
+    out["q"] = qnormalize(out["q_raw"])
+    return out
+
+
 @torch.no_grad()
 def generate(model: EmotiveGaitNet, seeds: Seeds, paths: torch.Tensor, emotions: torch.Tensor,
              offsets: torch.Tensor, parents: Sequence[int], cfg: PlacementConfig = PlacementConfig()) -> Generated:
@@ -163,6 +172,10 @@ def generate(model: EmotiveGaitNet, seeds: Seeds, paths: torch.Tensor, emotions:
     theta, omega = extrapolated_phase(seed.theta, seed.omega, steps)
     frames = seed.frames(0, prefix)
     pred, hidden = model(frames)
+    guided = cfg.guidance != 1.0
+    if guided:  # the same network without a condition (m = 0, as it learnt unlabelled gaits), its own state
+        free_pred, free_hidden = model({**frames, "condition": torch.zeros_like(frames["condition"])})
+        pred = _guide(pred, free_pred, cfg.guidance)
     current = {k: v[:, -1] for k, v in pred.items()}
     cumulative = arc_lengths(paths)
     ground = seed.root_position[:, -1, [0, 2]].clone()
@@ -213,6 +226,9 @@ def generate(model: EmotiveGaitNet, seeds: Seeds, paths: torch.Tensor, emotions:
                   "condition": condition[:, t:t + 1], "theta": theta[:, t:t + 1], "omega": omega[:, t:t + 1],
                   "s": speed[:, None], "kappa": kappa[:, None], "h": current["h"][:, None], "delta": delta[:, None]}
         pred, hidden = model(inputs, hidden)
+        if guided:
+            free_pred, free_hidden = model({**inputs, "condition": torch.zeros_like(inputs["condition"])}, free_hidden)
+            pred = _guide(pred, free_pred, cfg.guidance)
         current = {k: v[:, 0] for k, v in pred.items()}
     stacked = {k: torch.stack(v, dim=1) for k, v in out.items()}
     return Generated(theta=theta, condition=condition, **stacked)

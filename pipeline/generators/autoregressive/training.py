@@ -62,6 +62,7 @@ class TrainConfig:
     mismatch: float = 0.0  # probability that a labelled gait is generated under another condition than its own
     mismatch_content: float = 0.25  # weight of a mismatched pair's ground-truth (content) terms
     mirror: bool = False  # train also on the mirror images of the train gaits (ops.mirror; label-preserving)
+    style_sharpness: float = 1.0  # the style term asks for m^p / sum(m^p) (p > 1: a mixture reads as its dominant)
 
 
 @dataclass
@@ -231,10 +232,19 @@ def mismatched_conditions(condition: torch.Tensor, probability: float, generator
     return out, mismatched
 
 
-def style_targets(condition: torch.Tensor) -> torch.Tensor:
-    """(B, 5) conditions -> (B, 4) emotions the style term asks for (NaN rows: no condition, no style term)."""
+def style_targets(condition: torch.Tensor, sharpness: float = 1.0) -> torch.Tensor:
+    """(B, 5) conditions -> (B, 4) emotions the style term asks for (NaN rows: no condition, no style term).
+
+    With ``sharpness`` p > 1 a mixture m asks for m^p / sum(m^p): a blend of walks reads as its most vivid
+    component, not as its largest one (measured on a model trained with p = 1: three quarters of sad-, angry- and
+    neutral-dominant mixtures were read as happy), so the style term asks for the dominant emotion to show while
+    the others still move the gait."""
     labelled = condition[:, -1:] > 0.5
-    return torch.where(labelled, condition[:, :-1], torch.full_like(condition[:, :-1], float("nan")))
+    emotion = condition[:, :-1]
+    if sharpness != 1.0:
+        emotion = emotion.clamp_min(0.0) ** sharpness
+        emotion = emotion / emotion.sum(-1, keepdim=True).clamp_min(1e-12)
+    return torch.where(labelled, emotion, torch.full_like(emotion, float("nan")))
 
 
 def resolve_device(name: str) -> torch.device:
@@ -296,7 +306,7 @@ def train_generator(train: GaitTensors, val: GaitTensors, offsets: torch.Tensor,
             pred = rollout(model, batch, offsets, parents, cfg.prefix, tf, draws,
                            condition if bool(mismatched.any()) else None)
             losses = generator_losses(pred, targets(batch, cfg.prefix), model, offsets, parents, weights,
-                                      content, critic, style_targets(condition))
+                                      content, critic, style_targets(condition, cfg.style_sharpness))
             optimiser.zero_grad(set_to_none=True)
             losses.total.backward()
             torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.grad_clip)

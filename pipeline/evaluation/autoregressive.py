@@ -217,6 +217,16 @@ def expressiveness(model: EmotiveGaitNet, seeds: Seeds, centroids: torch.Tensor,
             "nearest_centroid_accuracy": round(hits / max(total, 1), 4), "chance": 0.25, "per_emotion": per_emotion}
 
 
+def one_hot_transition(a: int, b: int, steps: int, n: int) -> torch.Tensor:
+    """(n, steps, 4): the emotion interpolated linearly per frame from one-hot ``a`` to one-hot ``b``,
+    renormalised (the evaluation's transitions; the plan's own are ``synth.plan.frame_emotions``)."""
+    u = torch.linspace(0.0, 1.0, steps)[None, :, None]
+    start, end = torch.zeros(4), torch.zeros(4)
+    start[a], end[b] = 1.0, 1.0
+    emotion = (1 - u) * start + u * end
+    return (emotion / emotion.sum(-1, keepdim=True)).expand(n, -1, -1)
+
+
 def transitions(model: EmotiveGaitNet, seeds: Seeds, centroids: torch.Tensor, offsets: torch.Tensor,
                 parents: Sequence[int], steps: int, placement: PlacementConfig, low: torch.Tensor,
                 high: torch.Tensor, scale: torch.Tensor, blocks: int = 4) -> dict:
@@ -224,17 +234,12 @@ def transitions(model: EmotiveGaitNet, seeds: Seeds, centroids: torch.Tensor, of
     the affect summary of each of ``blocks`` consecutive stretches is projected on the axis from centroid A to
     centroid B. Reports how often the projection rises monotonically and its mean rise (A -> B = 1)."""
     paths = place_paths(straight_path(), seeds)
-    u = torch.linspace(0.0, 1.0, steps)[None, :, None]
     monotone, rises, pairs = [], [], {}
     for a in range(4):
         for b in range(4):
             if a == b:
                 continue
-            start, end = torch.zeros(4), torch.zeros(4)
-            start[a], end[b] = 1.0, 1.0
-            emotion = (1 - u) * start + u * end
-            emotion = (emotion / emotion.sum(-1, keepdim=True)).expand(len(seeds), -1, -1)
-            g = generate(model, seeds, paths, emotion, offsets, parents, placement)
+            g = generate(model, seeds, paths, one_hot_transition(a, b, steps, len(seeds)), offsets, parents, placement)
             axis = (centroids[b] - centroids[a]).double()
             stretches = g.positions.reshape(len(seeds), blocks, steps // blocks, *g.positions.shape[2:])
             summary = torch.stack([affect_summary(stretches[:, i], low, high, scale) for i in range(blocks)], 1)

@@ -27,7 +27,7 @@ import numpy as np
 import torch
 
 from pipeline.core.emotions import EMOTIONS
-from pipeline.evaluation.autoregressive import affect_summary, straight_path
+from pipeline.evaluation.autoregressive import affect_summary, one_hot_transition, straight_path
 from pipeline.generators.autoregressive.network import EmotiveGaitNet
 from pipeline.generators.autoregressive.rollout import Generated, PlacementConfig, Seeds, generate, place_paths
 from pipeline.recognition import RecognitionInputs, confusion, majority_baseline, scores
@@ -179,7 +179,6 @@ def transition_recognition(model: EmotiveGaitNet, pool: Seeds, pool_emotion: np.
     probability of B per block, the fraction of gaits where it rises from the first block to the last, and the
     same for the seeds under a constant A condition (the control)."""
     steps, spans = cfg.steps, cfg.blocks(cfg.steps)
-    u = torch.linspace(0.0, 1.0, steps)[None, :, None]
     probs: dict[str, dict[str, list[np.ndarray]]] = {k: {"transition": [], "control": []} for k in recognisers}
     pairs: dict[str, dict[str, Any]] = {}
     for a in range(4):
@@ -192,11 +191,7 @@ def transition_recognition(model: EmotiveGaitNet, pool: Seeds, pool_emotion: np.
         for b in range(4):
             if a == b:
                 continue
-            start, end = torch.zeros(4), torch.zeros(4)
-            start[a], end[b] = 1.0, 1.0
-            emotion = (1 - u) * start + u * end
-            emotion = (emotion / emotion.sum(-1, keepdim=True)).expand(len(rows), -1, -1)
-            g = generate(model, seeds, paths, emotion, offsets, parents, placement)
+            g = generate(model, seeds, paths, one_hot_transition(a, b, steps, len(rows)), offsets, parents, placement)
             inputs = generated_inputs(g, features)
             pair = {}
             for name, r in recognisers.items():

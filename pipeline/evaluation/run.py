@@ -21,6 +21,7 @@ from pipeline.evaluation.autoregressive import (
     emotion_centroids,
     expressiveness,
     long_rollouts,
+    one_hot_transition,
     rollout_figures,
     skating_speed,
     table1,
@@ -284,11 +285,7 @@ def preview_gaits(model: EmotiveGaitNet, arrays: dict[str, np.ndarray], content:
     seed_name = EMOTIONS[test_labels[list(test_rows).index(pick)]]
     emotions = [(f"{EMOTIONS[k]} (seed {seed_name})\n{setup.preview_trajectory}", g.positions[0].numpy())
                 for k, g in enumerate(generated)]
-    u = torch.linspace(0.0, 1.0, steps)[None, :, None]
-    a, b = torch.zeros(4), torch.zeros(4)
-    a[start], b[end] = 1.0, 1.0
-    mixed = (1 - u) * a + u * b
-    g = generate(model, seeds, paths, mixed / mixed.sum(-1, keepdim=True), offsets, parents, placement)
+    g = generate(model, seeds, paths, one_hot_transition(start, end, steps, 1), offsets, parents, placement)
     transition = [(f"constant {EMOTIONS[start]}", generated[start].positions[0].numpy()),
                   (f"{EMOTIONS[start]} -> {EMOTIONS[end]}", g.positions[0].numpy()),
                   (f"constant {EMOTIONS[end]}", generated[end].positions[0].numpy())]

@@ -3,8 +3,8 @@ blocks, and are deterministic for a seed; the bootstrap interval over clips hold
 with more clips; the heading-frame normalisation ignores where the body stands and faces; the memorisation
 distance is 0 for a train window against the train windows and positive for held-out ones.
 
-The real gaits are those of the published directory (``dvc repro`` writes it; the test is skipped, saying so,
-where it is absent): their real part, its train split for fitting and its val + test splits held out."""
+The real gaits are the default data's annotated windows, split as the pipeline splits them (``pipeline.split``,
+the params' seed and held-out rule): the train split for fitting, val + test held out."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ import yaml
 
 from pipeline.audit.memorisation import nearest_window_distance
 from pipeline.core.emotions import EMOTIONS, dominant_emotion
-from pipeline.dataset import load_dataframe
+from pipeline.split import assign_splits
 from pipeline.ops.quaternion import qrot, yaw
 from pipeline.recognition import (
     RECOGNISERS,
@@ -32,25 +32,26 @@ from pipeline.recognition import (
 )
 from stages.common import REPO
 
-PUBLISHED = REPO / "data" / "published" / "synthesized_emotive_gaits"
-CFG = RecogniserConfig.from_dict(yaml.safe_load((REPO / "params.yaml").read_text())["audit"]["recognisers"])
+PARAMS = yaml.safe_load((REPO / "params.yaml").read_text())
+CFG = RecogniserConfig.from_dict(PARAMS["audit"]["recognisers"])
 
 
 @pytest.fixture(scope="module")
-def real():
-    if not (PUBLISHED / "SHA256SUMS").is_file():
-        pytest.skip(f"no published directory at {PUBLISHED} (`dvc repro publish` writes it)")
+def real(annotated):
     torch.set_num_threads(1)
-    frame = load_dataframe(PUBLISHED, ["gait_id", "kind", "split", "source", "source_file", "emotion", "positions",
-                                       "heading", "affective", "movement"])
-    frame = frame[frame["kind"] == "real"].reset_index(drop=True)
+    table, arrays = annotated
+    clip_ids = table.column("clip_id").to_pylist()
+    labelled = ~np.isnan(arrays["emotion"]).any(-1)
+    strata = [dominant_emotion(arrays["emotion"][i] if labelled[i] else None, EMOTIONS) for i in range(len(clip_ids))]
+    split_of = assign_splits(dict(zip(clip_ids, strata)), PARAMS["split"]["fractions"], PARAMS["split"]["seed"],
+                             PARAMS["split"]["min_held_out_clips"])
+    split = np.array([split_of[c] for c in clip_ids])
     index = {n: i for i, n in enumerate(EMOTIONS)}
-    label = np.array([index.get(dominant_emotion(e, EMOTIONS), -1) for e in frame["emotion"]])
-    inputs = RecognitionInputs.from_frame(frame)
-    train = (frame["split"] == "train").to_numpy()
-    held = frame["split"].isin(["val", "test"]).to_numpy()
-    clips = (frame["source"] + "/" + frame["source_file"]).to_numpy()
-    return {"inputs": inputs, "label": label, "train": train, "held": held, "clips": clips,
+    label = np.array([index.get(d, -1) for d in strata])
+    inputs = RecognitionInputs(*(np.ascontiguousarray(arrays[k], dtype=np.float32)
+                                 for k in ("positions", "heading", "affective", "movement")))
+    train, held = split == "train", np.isin(split, ["val", "test"])
+    return {"inputs": inputs, "label": label, "train": train, "held": held, "clips": np.array(clip_ids),
             "fit": train & (label >= 0), "test": held & (label >= 0)}
 
 

@@ -152,3 +152,13 @@ def test_previews_and_report(controllability, tmp_path):
     assert "Condition sensitivity" in text and "temporal CNN" in text and "plan-like, full" in text
     plot_controllability({"controllability": out}, tmp_path / "c.png")
     assert (tmp_path / "c.png").stat().st_size > 10_000
+
+
+def test_plan_rows_are_also_read_under_their_dominant_one_hot(controllability):
+    out, _, _ = controllability
+    one_hot = out["plan_like_dominant_one_hot"]["full"]
+    assert one_hot["gaits"] == out["plan_like"]["full"]["gaits"] == 16
+    assert one_hot["intended_counts"] == out["plan_like"]["full"]["intended_counts"]
+    for kind in RECOGNISERS:
+        assert np.asarray(one_hot[kind]["confusion"]).sum() == 16
+    assert "plan-like under the dominant one-hot, full" in "\n".join(controllability_markdown(out))

@@ -95,10 +95,14 @@ def test_a_recogniser_is_deterministic_for_a_seed(real, fitted, kind):
     a, b, c = (fit_recogniser(kind, small, real["label"][rows], cfg, seed).probabilities(held) for seed in (3, 3, 4))
     assert np.array_equal(a, b)
     assert not np.array_equal(a, c)
-    state = torch.random.get_rng_state()
+    state, deterministic = torch.random.get_rng_state(), torch.are_deterministic_algorithms_enabled()
+    for mode in (not deterministic, deterministic):  # either global mode is left as it was
+        torch.use_deterministic_algorithms(mode)
+        fit_recogniser(kind, small, real["label"][rows], cfg, 5)
+        assert torch.are_deterministic_algorithms_enabled() == mode
+    torch.random.set_rng_state(state)
     fit_recogniser(kind, small, real["label"][rows], cfg, 5)
     assert torch.equal(state, torch.random.get_rng_state())  # the global RNG is left as it was
-    assert not torch.are_deterministic_algorithms_enabled()
 
 
 def test_the_bootstrap_interval_holds_the_estimate_and_narrows_with_more_clips(real, fitted):

@@ -238,6 +238,12 @@ def evaluate_controllability(table: pa.Table, arrays: dict[str, np.ndarray], mod
         plan_inputs = RecognitionInputs(made["positions"], made["heading"], made["affective"], made["movement"])
         out["plan_like"][name] = {"trajectories": sorted({r["trajectory_id"] for r in rows}),
                                   **recognition_scores(recognisers, plan_inputs, intended)}
+        if name == "full":  # the same rows under the one-hot of their dominant emotion: is it the mixture?
+            dominant_only = np.eye(len(EMOTIONS))[np.argmax(work.emotions, axis=-1)]
+            made = synthesize(family, rows, dominant_only, trajectories, skeleton, setup.annotate,
+                              replace(setup.synthesis, frames=cfg.steps))
+            plan_inputs = RecognitionInputs(made["positions"], made["heading"], made["affective"], made["movement"])
+            out["plan_like_dominant_one_hot"] = {name: recognition_scores(recognisers, plan_inputs, intended)}
     content = np.array(table.column("content").to_pylist())
     previews = preview_gaits(full, arrays, content, test_rows, test_labels, work, setup, offsets, parents, placement,
                              prefix)

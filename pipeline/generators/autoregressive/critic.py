@@ -83,8 +83,9 @@ def fit_critic(pose: torch.Tensor, emotion: torch.Tensor, affective_bounds: tupl
     included by the caller), emotion (N, 4) soft labels; affective_bounds: the generator's (low, high, mean, std)
     of the affective features. Returns the frozen critic and its training figures (accuracy on its own crops)."""
     generator = torch.Generator().manual_seed(cfg.seed)
-    torch.manual_seed(cfg.seed)
-    critic = StyleCritic()
+    with torch.random.fork_rng(devices=[]):  # its own seed; the caller's random stream is left as it was
+        torch.manual_seed(cfg.seed)
+        critic = StyleCritic()
     for name, value in zip(("affective_low", "affective_high", "affective_mean", "affective_std"), affective_bounds):
         getattr(critic, name).copy_(value)
     crops = random_crops(pose, cfg.crop_frames, cfg.crops, generator)

@@ -260,6 +260,6 @@ def generator_losses(pred: dict[str, torch.Tensor], target: dict[str, torch.Tens
         if conditioned.any():
             style = style_loss(critic(predicted_pose[conditioned]), style_target[conditioned])
         else:
-            style = predicted_pose.sum() * 0.0
+            style = predicted_pose.new_zeros(())
         total = total + weights.style * style
     return Losses(motion=motion, pose=pose, affective=affective, root=root, foot=foot, total=total, style=style)

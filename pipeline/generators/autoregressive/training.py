@@ -282,9 +282,6 @@ def train_generator(train: GaitTensors, val: GaitTensors, offsets: torch.Tensor,
                                             (model.affective_low, model.affective_high, model.affective_mean,
                                              model.affective_std), critic_cfg)
         critic.to(device)
-        torch.manual_seed(cfg.seed)  # the generator's initialisation does not depend on the critic's fit
-        model = EmotiveGaitNet(model_cfg)
-        model.set_statistics(train.affective, train.scalars())
     model.to(device)
     offsets = offsets.to(device=device, dtype=torch.float32)
     train_d, val_d = train.to(device), val.to(device)

@@ -16,8 +16,7 @@ import torch
 import yaml
 
 from pipeline.audit.memorisation import nearest_window_distance
-from pipeline.core.emotions import EMOTIONS, dominant_emotion
-from pipeline.split import assign_splits
+from pipeline.core.emotions import EMOTIONS
 from pipeline.ops.quaternion import qrot, yaw
 from pipeline.recognition import (
     RECOGNISERS,
@@ -37,19 +36,13 @@ CFG = RecogniserConfig.from_dict(PARAMS["audit"]["recognisers"])
 
 
 @pytest.fixture(scope="module")
-def real(annotated):
+def real(annotated_split):
     torch.set_num_threads(1)
-    table, arrays = annotated
+    table, arrays, split, strata = annotated_split
     clip_ids = table.column("clip_id").to_pylist()
-    labelled = ~np.isnan(arrays["emotion"]).any(-1)
-    strata = [dominant_emotion(arrays["emotion"][i] if labelled[i] else None, EMOTIONS) for i in range(len(clip_ids))]
-    split_of = assign_splits(dict(zip(clip_ids, strata)), PARAMS["split"]["fractions"], PARAMS["split"]["seed"],
-                             PARAMS["split"]["min_held_out_clips"])
-    split = np.array([split_of[c] for c in clip_ids])
     index = {n: i for i, n in enumerate(EMOTIONS)}
     label = np.array([index.get(d, -1) for d in strata])
-    inputs = RecognitionInputs(*(np.ascontiguousarray(arrays[k], dtype=np.float32)
-                                 for k in ("positions", "heading", "affective", "movement")))
+    inputs = RecognitionInputs.from_arrays(arrays)
     train, held = split == "train", np.isin(split, ["val", "test"])
     return {"inputs": inputs, "label": label, "train": train, "held": held, "clips": np.array(clip_ids),
             "fit": train & (label >= 0), "test": held & (label >= 0)}

@@ -56,13 +56,6 @@ def generated_inputs(g: Generated, features: FeatureFn) -> RecognitionInputs:
                              affective=f["affective"].astype(np.float32), movement=f["movement"].astype(np.float32))
 
 
-def real_inputs(arrays: dict[str, np.ndarray], rows: np.ndarray) -> RecognitionInputs:
-    def a(name: str) -> np.ndarray:
-        return np.ascontiguousarray(arrays[name][rows], dtype=np.float32)
-    return RecognitionInputs(positions=a("positions"), heading=a("heading"), affective=a("affective"),
-                             movement=a("movement"))
-
-
 def one_hot(k: int, n: int, steps: int) -> torch.Tensor:
     out = torch.zeros(n, steps, 4)
     out[..., k] = 1.0

@@ -33,7 +33,6 @@ from pipeline.evaluation.controllability import (
     condition_sensitivity,
     generated_inputs,
     nearest_centroid,
-    real_inputs,
     real_style,
     recognition_scores,
     style_retention,
@@ -196,14 +195,15 @@ def evaluate_controllability(table: pa.Table, arrays: dict[str, np.ndarray], mod
     started = time.perf_counter()
     print(f"evaluate: fitting recognisers {', '.join(RECOGNISERS)} on {len(train_rows)} labelled train gaits",
           flush=True)
-    recognisers = {kind: fit_recogniser(kind, real_inputs(arrays, train_rows), train_labels, setup.recognisers,
+    train_inputs = RecognitionInputs.from_arrays(arrays, train_rows)
+    recognisers = {kind: fit_recogniser(kind, train_inputs, train_labels, setup.recognisers,
                                         cfg.seed) for kind in RECOGNISERS}
     # The fit time is printed, not reported: eval.json is a DVC metric and must be the same bytes on a rerun.
     print(f"evaluate: recognisers fitted in {time.perf_counter() - started:.1f} s", flush=True)
     out: dict[str, Any] = {"config": asdict(cfg), "recognisers": list(RECOGNISERS),
                            "train_labelled_gaits": int(len(train_rows))}
     test_rows, test_labels = labelled_rows(split, dominant, "test")
-    real = real_inputs(arrays, test_rows)
+    real = RecognitionInputs.from_arrays(arrays, test_rows)
     real_positions = torch.from_numpy(arrays["positions"][test_rows])
     out["real_test"] = {"scores": recognition_scores(recognisers, real, test_labels),
                         **real_style(real, real_positions, test_labels, prefix, recognisers, centroid_reading, cfg)}
@@ -235,14 +235,14 @@ def evaluate_controllability(table: pa.Table, arrays: dict[str, np.ndarray], mod
         family = AutoregressiveFamily(models[name], shas[name], arrays, work.row_of, skeleton, placement, prefix)
         made = synthesize(family, rows, work.emotions, trajectories, skeleton, setup.annotate,
                           replace(setup.synthesis, frames=cfg.steps))
-        plan_inputs = RecognitionInputs(made["positions"], made["heading"], made["affective"], made["movement"])
+        plan_inputs = RecognitionInputs.from_arrays(made)
         out["plan_like"][name] = {"trajectories": sorted({r["trajectory_id"] for r in rows}),
                                   **recognition_scores(recognisers, plan_inputs, intended)}
         if name == "full":  # the same rows under the one-hot of their dominant emotion: is it the mixture?
             dominant_only = np.eye(len(EMOTIONS))[np.argmax(work.emotions, axis=-1)]
             made = synthesize(family, rows, dominant_only, trajectories, skeleton, setup.annotate,
                               replace(setup.synthesis, frames=cfg.steps))
-            plan_inputs = RecognitionInputs(made["positions"], made["heading"], made["affective"], made["movement"])
+            plan_inputs = RecognitionInputs.from_arrays(made)
             out["plan_like_dominant_one_hot"] = {name: recognition_scores(recognisers, plan_inputs, intended)}
     content = np.array(table.column("content").to_pylist())
     previews = preview_gaits(full, arrays, content, test_rows, test_labels, work, setup, offsets, parents, placement,

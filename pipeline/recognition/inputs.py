@@ -89,6 +89,12 @@ class RecognitionInputs:
         return cls(*(np.concatenate([getattr(p, c) for p in parts]) for c in COLUMNS))
 
     @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray], rows=slice(None)) -> "RecognitionInputs":
+        """From per-gait arrays by column name (the gait table's ``read_gaits``, a synthesis' output), the gaits
+        at ``rows``."""
+        return cls(*(np.ascontiguousarray(arrays[c][rows], dtype=np.float32) for c in COLUMNS))
+
+    @classmethod
     def from_frame(cls, frame: pd.DataFrame) -> "RecognitionInputs":
         """From ``pipeline.dataset.load_dataframe`` columns positions, heading, affective and movement."""
         missing = [c for c in COLUMNS if c not in frame]

@@ -20,15 +20,19 @@ import dataclasses
 import os
 from pathlib import Path
 
+import numpy as np
+import pyarrow as pa
 import pytest
 import torch
 
 from pipeline.annotate.annotation import ANNOTATION_META, annotate_windows
+from pipeline.core.emotions import EMOTIONS, dominant_emotion
 from pipeline.core.skeleton import load_skeleton
 from pipeline.ingest.run import build_report, ingest_chunk, plan_chunks, run_ingest
 from pipeline.io.files import write_parquet
 from pipeline.io.gait_table import read_gaits, to_table, with_arrays
 from pipeline.io.manifests import SourceManifest, load_manifests
+from pipeline.split import assign_splits
 from stages.common import REPO, SKELETON, SOURCES, load_params, mocap_root
 from stages.configs import annotate_config, ingest_config as params_ingest_config
 
@@ -147,6 +151,20 @@ def _annotate(tmp_path_factory, ingested, skeleton, name: str):
 def annotated(tmp_path_factory, full_ingest, skeleton):
     """The annotate stage's output for the full ingest."""
     return _annotate(tmp_path_factory, full_ingest, skeleton, "annotated")
+
+
+@pytest.fixture(scope="session")
+def annotated_split(annotated):
+    """The annotated windows with the pipeline's split (``pipeline.split``, the params' seed and held-out rule):
+    (table with a ``split`` column, arrays, split (N,) array, dominant emotion names (N,) list)."""
+    table, arrays = annotated
+    p = load_params()["split"]
+    clip_ids = table.column("clip_id").to_pylist()
+    labelled = ~np.isnan(arrays["emotion"]).any(-1)
+    dominant = [dominant_emotion(arrays["emotion"][i] if labelled[i] else None, EMOTIONS) for i in range(len(clip_ids))]
+    split_of = assign_splits(dict(zip(clip_ids, dominant)), p["fractions"], p["seed"], p["min_held_out_clips"])
+    split = np.array([split_of[c] for c in clip_ids])
+    return table.append_column("split", pa.array(split.tolist(), type=pa.string())), arrays, split, dominant
 
 
 @pytest.fixture(scope="session")

@@ -58,9 +58,16 @@ def critic(labelled, offsets, skeleton):
     return (*fit_critic(pose, fit.condition[:, :4], _bounds(fit), CriticConfig(epochs=200)), fit)
 
 
-def _bounds(g: GaitTensors) -> tuple[torch.Tensor, ...]:
+def _net(g: GaitTensors, seed: int = 0) -> EmotiveGaitNet:
+    """A TINY network, seeded, with the statistics of ``g``."""
+    torch.manual_seed(seed)
     model = EmotiveGaitNet(TINY)
     model.set_statistics(g.affective, g.scalars())
+    return model
+
+
+def _bounds(g: GaitTensors) -> tuple[torch.Tensor, ...]:
+    model = _net(g)
     return model.affective_low, model.affective_high, model.affective_mean, model.affective_std
 
 
@@ -133,9 +140,7 @@ def test_mirrored_training_gaits_keep_their_labels_and_swap_sides(labelled, skel
 
 def test_the_style_term_trains_the_generator_and_reaches_it_through_the_rollout(critic, offsets, skeleton):
     critic, _, g = critic
-    torch.manual_seed(0)
-    model = EmotiveGaitNet(TINY)
-    model.set_statistics(g.affective, g.scalars())
+    model = _net(g, 0)
     batch = g.select(slice(0, 8))
     condition, _ = mismatched_conditions(batch.condition, 1.0, torch.Generator().manual_seed(2))
     pred = rollout(model, batch, offsets, skeleton.parents, 18, condition=condition)
@@ -157,9 +162,7 @@ def test_steps_on_the_style_term_move_the_critic_reading_towards_the_condition(c
     another): the critic's probability of the condition in the free-running frames rises. The term points the
     network at the condition through the whole autoregressive rollout."""
     critic, _, g = critic
-    torch.manual_seed(0)
-    model = EmotiveGaitNet(TINY)
-    model.set_statistics(g.affective, g.scalars())
+    model = _net(g, 0)
     batch = g.select(slice(0, 16))
     condition, mismatched = mismatched_conditions(batch.condition, 1.0, torch.Generator().manual_seed(3))
     assert mismatched.all()
@@ -202,9 +205,7 @@ def test_guidance_one_is_plain_generation_and_more_guidance_moves_along_the_cond
 
     arrays, fit_rows, _ = labelled
     g = GaitTensors.from_arrays(arrays, fit_rows)
-    torch.manual_seed(1)
-    model = EmotiveGaitNet(TINY)
-    model.set_statistics(g.affective, g.scalars())
+    model = _net(g, 1)
     seeds = Seeds.from_arrays(arrays, fit_rows[:4], prefix=18)
     paths = place_paths(straight_path(), seeds)
     happy, sad = torch.zeros(4, 12, 4), torch.zeros(4, 12, 4)

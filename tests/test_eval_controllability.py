@@ -8,11 +8,10 @@ from __future__ import annotations
 import copy
 
 import numpy as np
-import pyarrow as pa
 import pytest
 import torch
 
-from pipeline.core.emotions import EMOTIONS, dominant_emotion
+from pipeline.core.emotions import EMOTIONS
 from pipeline.evaluation.autoregressive import affect_summary, emotion_centroids
 from pipeline.evaluation.controllability import ControllabilityConfig, condition_sensitivity
 from pipeline.evaluation.report import controllability_markdown, plot_controllability
@@ -21,7 +20,6 @@ from pipeline.generators.autoregressive.critic import CriticConfig
 from pipeline.generators.autoregressive.network import CONDITION, GeneratorConfig, LossWeights
 from pipeline.generators.autoregressive.training import GaitTensors, TrainConfig, checkpoint_bytes, train_generator
 from pipeline.io.files import sha256_bytes
-from pipeline.split import assign_splits
 from pipeline.recognition import RECOGNISERS, RecogniserConfig
 from pipeline.synth.synthesis import SynthesisConfig
 from stages.common import load_params
@@ -31,18 +29,9 @@ pytestmark = pytest.mark.slow  # a network trained briefly, recognisers fitted, 
 
 
 @pytest.fixture(scope="module")
-def split_gaits(annotated):
-    """The default data's annotated windows with the pipeline's split (its seed and held-out rule)."""
+def split_gaits(annotated_split):
     torch.set_num_threads(1)
-    table, arrays = annotated
-    params = load_params()["split"]
-    clip_ids = table.column("clip_id").to_pylist()
-    labelled = ~np.isnan(arrays["emotion"]).any(-1)
-    dominant = [dominant_emotion(arrays["emotion"][i] if labelled[i] else None, EMOTIONS) for i in range(len(clip_ids))]
-    split_of = assign_splits(dict(zip(clip_ids, dominant)), params["fractions"], params["seed"],
-                             params["min_held_out_clips"])
-    split = np.array([split_of[c] for c in clip_ids])
-    return table.append_column("split", pa.array(split.tolist(), type=pa.string())), arrays, split, dominant
+    return annotated_split
 
 
 @pytest.fixture(scope="module")

@@ -148,6 +148,11 @@ def test_plan_rows_are_also_read_under_their_dominant_one_hot(controllability):
     one_hot = out["plan_like_dominant_one_hot"]["full"]
     assert one_hot["gaits"] == out["plan_like"]["full"]["gaits"] == 16
     assert one_hot["intended_counts"] == out["plan_like"]["full"]["intended_counts"]
+    # with the condition cut, a row's gait is the same under its mixture and under its one-hot: so are the readings
+    cut, cut_one_hot = out["plan_like"]["no_affect"], out["plan_like_dominant_one_hot"]["no_affect"]
     for kind in RECOGNISERS:
         assert np.asarray(one_hot[kind]["confusion"]).sum() == 16
-    assert "plan-like under the dominant one-hot, full" in "\n".join(controllability_markdown(out))
+        assert cut_one_hot[kind]["confusion"] == cut[kind]["confusion"], kind
+    text = "\n".join(controllability_markdown(out))
+    for name in ("full", "no_affect"):
+        assert f"plan-like under the dominant one-hot, {name}" in text

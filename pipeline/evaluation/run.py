@@ -210,7 +210,7 @@ def evaluate_controllability(table: pa.Table, arrays: dict[str, np.ndarray], mod
     seeds = Seeds.from_arrays(arrays, test_rows, prefix)
     paths = place_paths(straight_path(), seeds)
     out["condition_sensitivity"], out["style_retention"] = {}, {}
-    out["transitions"], out["plan_like"] = {}, {}
+    out["transitions"], out["plan_like"], out["plan_like_dominant_one_hot"] = {}, {}, {}
     for name, model in models.items():
         print(f"evaluate: controllability of {name} from {len(test_rows)} labelled test seeds", flush=True)
         generated = under_each_emotion(model, seeds, paths, cfg.steps, offsets, parents, placement)
@@ -227,6 +227,7 @@ def evaluate_controllability(table: pa.Table, arrays: dict[str, np.ndarray], mod
     trajectories = {t.id: t for t in work.trajectories}
     intended = np.array([EMOTIONS.index(dominant_emotion(work.emotions[r["recipe"]["emotion"]], EMOTIONS))
                          for r in rows])
+    dominant_only = np.eye(len(EMOTIONS))[np.argmax(work.emotions, axis=-1)]
     for name in ("full", "no_affect"):
         if name not in models:
             continue
@@ -238,12 +239,11 @@ def evaluate_controllability(table: pa.Table, arrays: dict[str, np.ndarray], mod
         plan_inputs = RecognitionInputs.from_arrays(made)
         out["plan_like"][name] = {"trajectories": sorted({r["trajectory_id"] for r in rows}),
                                   **recognition_scores(recognisers, plan_inputs, intended)}
-        if name == "full":  # the same rows under the one-hot of their dominant emotion: is it the mixture?
-            dominant_only = np.eye(len(EMOTIONS))[np.argmax(work.emotions, axis=-1)]
-            made = synthesize(family, rows, dominant_only, trajectories, skeleton, setup.annotate,
-                              replace(setup.synthesis, frames=cfg.steps))
-            plan_inputs = RecognitionInputs.from_arrays(made)
-            out["plan_like_dominant_one_hot"] = {name: recognition_scores(recognisers, plan_inputs, intended)}
+        # the same rows under the one-hot of their dominant emotion: how much of a miss is the mixtures'?
+        made = synthesize(family, rows, dominant_only, trajectories, skeleton, setup.annotate,
+                          replace(setup.synthesis, frames=cfg.steps))
+        out["plan_like_dominant_one_hot"][name] = recognition_scores(recognisers, RecognitionInputs.from_arrays(made),
+                                                                     intended)
     content = np.array(table.column("content").to_pylist())
     previews = preview_gaits(full, arrays, content, test_rows, test_labels, work, setup, offsets, parents, placement,
                              prefix)

@@ -32,7 +32,8 @@ def annotate_config(params: dict[str, Any]) -> AnnotateConfig:
 def placement_config(params: dict[str, Any]) -> PlacementConfig:
     from pipeline.generators.autoregressive.rollout import PlacementConfig
 
-    return PlacementConfig.from_dict(params.get("generate") or {}, params["ingest"]["target_fps"])
+    return PlacementConfig.from_dict(params.get("generate") or {}, params["ingest"]["target_fps"],
+                                     contact_config(params))
 
 
 def ingest_config(params: dict[str, Any]) -> IngestConfig:

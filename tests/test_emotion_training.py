@@ -218,3 +218,38 @@ def test_guidance_one_is_plain_generation_and_more_guidance_moves_along_the_cond
     # guidance amplifies what the condition changes: the two emotions end up further apart
     gap = {w: float((run(happy, w) - run(sad, w)).norm()) for w in (1.0, 2.0)}
     assert gap[2.0] > 1.2 * gap[1.0], gap
+
+
+def test_sharpened_emotions_keep_vertices_and_grow_the_dominant_component():
+    from pipeline.generators.autoregressive.network import sharpened
+
+    m = torch.tensor([[0.4, 0.3, 0.2, 0.1], [0.0, 1.0, 0.0, 0.0], [float("nan")] * 4])
+    assert sharpened(m, 1.0) is m
+    out = sharpened(m, 4.0)
+    assert torch.allclose(out[:2].sum(-1), torch.ones(2))
+    assert torch.equal(out[1], m[1]) and torch.isnan(out[2]).all()
+    assert out[0].argmax() == 0 and out[0, 0] > 0.7 and (torch.diff(out[0]) < 0).all()  # the order is kept
+
+
+def test_expression_sharpness_leaves_one_hot_conditions_and_moves_mixtures_to_their_dominant(labelled, offsets,
+                                                                                            skeleton):
+    from pipeline.evaluation.autoregressive import straight_path
+    from pipeline.generators.autoregressive.rollout import PlacementConfig, Seeds, generate, place_paths
+
+    arrays, fit_rows, _ = labelled
+    model = _net(GaitTensors.from_arrays(arrays, fit_rows), 1)
+    seeds = Seeds.from_arrays(arrays, fit_rows[:4], prefix=18)
+    paths = place_paths(straight_path(), seeds)
+    happy, mixture = torch.zeros(4, 12, 4), torch.tensor([0.45, 0.25, 0.2, 0.1]).expand(4, 12, 4)
+    happy[..., 0] = 1.0
+
+    def run(emotions: torch.Tensor, p: float):
+        return generate(model, seeds, paths, emotions, offsets, skeleton.parents,
+                        PlacementConfig(guidance=2.0, expression_sharpness=p))
+
+    assert torch.equal(run(happy, 6.0).versors, run(happy, 1.0).versors)  # a vertex is its own sharpening
+    sharp, plain = run(mixture, 6.0), run(mixture, 1.0)
+    assert torch.allclose(sharp.condition[..., :4].sum(-1), torch.ones(4, 12))
+    assert float(sharp.condition[0, 0, 0]) > 0.9 > float(plain.condition[0, 0, 0])  # the condition the net was fed
+    to_happy = {p: float((g.versors - run(happy, 1.0).versors).norm()) for p, g in (("sharp", sharp), ("plain", plain))}
+    assert to_happy["sharp"] < 0.5 * to_happy["plain"], to_happy

@@ -211,6 +211,25 @@ def test_stance_foot_placement_keeps_the_lowest_point_planted(gaits, offsets, sk
         out.positions[:, 1:, 0, [0, 2]] - out.positions[:, :-1, 0, [0, 2]], dim=-1), atol=1e-5)
 
 
+def test_foot_lock_publishes_the_locked_legs_of_the_same_walk(gaits, offsets, skeleton):
+    from pipeline.ops.footlock import lock_feet
+
+    arrays, rows, g = gaits
+    model = _model(g)
+    seeds = Seeds.from_arrays(arrays, rows[:6], prefix=18)
+    paths, emotions = place_paths(straight_path(), seeds), torch.full((6, 40, 4), 0.25)
+    free = generate(model, seeds, paths, emotions, offsets, skeleton.parents, PlacementConfig())
+    locked = generate(model, seeds, paths, emotions, offsets, skeleton.parents, PlacementConfig(foot_lock=True))
+    rotations, positions = lock_feet(free.rotations, free.positions[..., 0, :], offsets, skeleton.parents, 30.0)
+    assert torch.equal(locked.rotations, rotations) and torch.equal(locked.positions, positions)
+    assert not torch.equal(locked.rotations, free.rotations)  # some stance foot was held
+    # only the legs change; the root, the pelvis and the network's own inputs are the same
+    for name in ("heading", "travel", "s", "h", "advance"):
+        assert torch.equal(getattr(locked, name), getattr(free, name)), name
+    assert torch.equal(locked.versors[..., 0, :], free.versors[..., 0, :])
+    assert torch.equal(locked.versors[..., 1:, :], locked.rotations[..., 1:, :])
+
+
 def test_baselines(gaits, offsets, skeleton):
     _, _, g = gaits
     zero = zero_velocity(g.q[:, :18], 42)

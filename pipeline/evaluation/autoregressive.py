@@ -81,8 +81,9 @@ def table1(models: dict[str, EmotiveGaitNet], gaits: GaitTensors, heading: torch
     # The root as the paper places it (by ŝ along the given path): the travel frame then follows the ground-truth
     # path as in training, and root_distance_m measures the predicted speed. The stance-foot placement of
     # generated gaits moves the root, not the pose, and is measured by the rollouts.
-    # No guidance either: Table 1 measures the network's own prediction (guidance is a generation choice).
-    placement = replace(placement, root_advance="predicted_speed", guidance=1.0)
+    # No guidance and no foot lock either: Table 1 measures the network's own prediction (both are generation
+    # choices).
+    placement = replace(placement, root_advance="predicted_speed", guidance=1.0, foot_lock=False)
     seeds = Seeds(gaits=prefix_of(gaits, prefix), heading=heading[:, :prefix])
     paths = gaits.root_position[:, prefix - 1:, [0, 2]]
     predictions = {"zero_velocity": zero_velocity(gaits.q[:, :prefix], steps),

@@ -180,6 +180,15 @@ def condition_vectors(emotion: torch.Tensor) -> torch.Tensor:
     return torch.cat([torch.where(labelled, emotion, torch.zeros_like(emotion)), labelled.to(emotion.dtype)], -1)
 
 
+def sharpened(emotion: torch.Tensor, power: float) -> torch.Tensor:
+    """(..., 4) emotion rows -> m^p / sum(m^p): the dominant component grows, a one-hot stays itself, p = 1 changes
+    nothing (NaN rows stay NaN)."""
+    if power == 1.0:
+        return emotion
+    raised = emotion.clamp_min(0.0) ** power
+    return raised / raised.sum(-1, keepdim=True).clamp_min(1e-12)
+
+
 def travel_frame_positions(q: torch.Tensor, offsets: torch.Tensor, parents: Sequence[int]) -> torch.Tensor:
     """Joint positions (..., 21, 3) relative to the root, in the frame of the direction of travel, from the 21
     versors (..., 21, 4) (q[..., 0]: the pelvis relative to that direction).

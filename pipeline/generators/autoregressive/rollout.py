@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from pipeline.generators.autoregressive.network import FOOT_JOINTS, EmotiveGaitNet, condition_vectors
+from pipeline.generators.autoregressive.network import FOOT_JOINTS, EmotiveGaitNet, condition_vectors, sharpened
 from pipeline.ops.geometry import (
     arc_lengths,
     closest_arc,
@@ -48,6 +48,8 @@ from pipeline.ops.geometry import (
     unit_direction,
     wrap_angle,
 )
+from pipeline.ops.contacts import ContactConfig
+from pipeline.ops.footlock import lock_feet
 from pipeline.ops.kinematics import canonical_positions
 from pipeline.ops.quaternion import qmul, qnormalize, yaw
 from pipeline.generators.autoregressive.training import GaitTensors, extrapolated_phase, predicted_affective
@@ -66,11 +68,16 @@ class PlacementConfig:
     drift_seconds: float = 1.0
     max_drift_deg: float = 15.0
     guidance: float = 1.0  # classifier-free guidance w of the condition (1: none; see ``generate``)
+    expression_sharpness: float = 1.0  # the condition of an emotion m is m^p / sum(m^p) (1: m itself; ``generate``)
+    foot_lock: bool = False  # hold stance feet still by leg IK after generation (ops.footlock)
+    contacts: ContactConfig = ContactConfig()  # what a stance foot is (the annotation's rule)
 
     @classmethod
-    def from_dict(cls, generate: dict[str, Any], fps: float) -> PlacementConfig:
-        """From a ``generate`` mapping (numbers and the ``root_advance`` name) at the gaits' frame rate."""
-        return cls(fps=float(fps), **{k: (v if isinstance(v, str) else float(v)) for k, v in generate.items()})
+    def from_dict(cls, generate: dict[str, Any], fps: float, contacts: ContactConfig = ContactConfig()
+                  ) -> PlacementConfig:
+        """From a ``generate`` mapping (numbers, the ``root_advance`` name, ``foot_lock``) at the gaits' frame rate."""
+        return cls(fps=float(fps), contacts=contacts,
+                   **{k: (v if isinstance(v, (str, bool)) else float(v)) for k, v in generate.items()})
 
     def __post_init__(self) -> None:
         if self.root_advance not in ("stance_foot", "predicted_speed"):
@@ -167,7 +174,7 @@ def generate(model: EmotiveGaitNet, seeds: Seeds, paths: torch.Tensor, emotions:
     seed = seeds.gaits
     offsets = offsets.to(torch.float32)
     steps = emotions.shape[1]
-    condition = condition_vectors(emotions.to(torch.float32))
+    condition = condition_vectors(sharpened(emotions.to(torch.float32), cfg.expression_sharpness))
     prefix = seed.q.shape[1]
     theta, omega = extrapolated_phase(seed.theta, seed.omega, steps)
     frames = seed.frames(0, prefix)
@@ -231,4 +238,8 @@ def generate(model: EmotiveGaitNet, seeds: Seeds, paths: torch.Tensor, emotions:
             pred = _guide(pred, free_pred, cfg.guidance)
         current = {k: v[:, 0] for k, v in pred.items()}
     stacked = {k: torch.stack(v, dim=1) for k, v in out.items()}
+    if cfg.foot_lock:  # the network's own inputs were its unlocked frames; only what is published changes
+        stacked["rotations"], stacked["positions"] = lock_feet(stacked["rotations"], stacked["positions"][..., 0, :],
+                                                               offsets, parents, cfg.fps, cfg.contacts)
+        stacked["versors"] = torch.cat([stacked["versors"][..., :1, :], stacked["rotations"][..., 1:, :]], dim=-2)
     return Generated(theta=theta, condition=condition, **stacked)

@@ -35,6 +35,7 @@ from pipeline.generators.autoregressive.network import (
     LossWeights,
     condition_vectors,
     generator_losses,
+    sharpened,
     travel_frame_positions,
 )
 from pipeline.ops.quaternion import qmul, yaw
@@ -240,10 +241,7 @@ def style_targets(condition: torch.Tensor, sharpness: float = 1.0) -> torch.Tens
     neutral-dominant mixtures were read as happy), so the style term asks for the dominant emotion to show while
     the others still move the gait."""
     labelled = condition[:, -1:] > 0.5
-    emotion = condition[:, :-1]
-    if sharpness != 1.0:
-        emotion = emotion.clamp_min(0.0) ** sharpness
-        emotion = emotion / emotion.sum(-1, keepdim=True).clamp_min(1e-12)
+    emotion = sharpened(condition[:, :-1], sharpness)
     return torch.where(labelled, emotion, torch.full_like(emotion, float("nan")))
 
 

@@ -11,7 +11,8 @@ import torch
 
 from pipeline.evaluation.autoregressive import constant_velocity, pose_errors, straight_path, turn_path, zero_velocity
 from pipeline.io.files import write_bytes
-from pipeline.generators.autoregressive.rollout import PlacementConfig, Seeds, generate, place_paths, stance_step
+from pipeline.generators.autoregressive.rollout import (PlacementConfig, Seeds, generate, place_paths, stance_step,
+                                                      swinging_points)
 from pipeline.generators.autoregressive.network import FOOT_JOINTS, EmotiveGaitNet, GeneratorConfig, LossWeights, generator_losses
 from pipeline.ops.geometry import distance_to_polyline
 from pipeline.ops.quaternion import euler_to_quat, qangle, qnormalize, quat_to_euler
@@ -191,6 +192,34 @@ def test_stance_foot_steps_recover_the_root_travel_of_real_walks(annotated):
     error = torch.linalg.vector_norm(steps - travelled, dim=-1) / torch.linalg.vector_norm(travelled, dim=-1)
     assert len(rows) > 150
     assert float(error.median()) < 0.03 and float(np.percentile(error.numpy(), 90)) < 0.1
+    # the same with the swing foot ruled out by the real stepping phase: real swing feet are never the lowest, so
+    # the gate changes (almost) nothing on real walks
+    theta = torch.from_numpy(arrays["phase"][rows]).double()
+    gated = sum(stance_step(feet[:, t - 1], feet[:, t], 0.002, 0.1, swinging_points(theta[:, t], 0.6))
+                for t in range(1, positions.shape[1]))
+    gated_error = torch.linalg.vector_norm(gated - travelled, dim=-1) / torch.linalg.vector_norm(travelled, dim=-1)
+    assert float(gated_error.median()) < 0.03 and float(np.percentile(gated_error.numpy(), 90)) < 0.1
+
+
+def test_swinging_points_follow_the_stepping_phase():
+    theta = torch.tensor([0.0, 0.5 * math.pi, math.pi, 1.5 * math.pi, 1.9 * math.pi])
+    swing = swinging_points(theta, 0.6)  # columns: left heel, left toe, right heel, right toe
+    assert not swing[0].any() and not swing[2].any()  # at each strike both feet are down (double support)
+    assert swing[1].tolist() == [False, False, True, True]  # after the left strike the right foot swings
+    assert swing[3].tolist() == [True, True, False, False] and swing[4].tolist() == [True, True, False, False]
+    assert swinging_points(torch.tensor([0.8 * math.pi]), 0.3).all()  # running: a flight phase, both swing
+
+
+def test_a_swing_foot_skimming_below_the_stance_foot_does_not_carry_the_root_back():
+    previous = torch.zeros(1, 4, 3)
+    previous[0, :2, 1], previous[0, 2:, 1] = 0.05, 0.06  # left (stance) at 5 cm, right (swing) at 6 cm
+    now = previous.clone()
+    now[0, :2, 2] -= 0.04  # the stance foot moves back 4 cm under the body: the root moves forward 4 cm
+    now[0, 2:, 2] += 0.08  # the swing foot moves forward 8 cm ...
+    now[0, 2:, 1] = 0.01  # ... and dips below the stance foot
+    swing = torch.tensor([[False, False, True, True]])
+    assert float(stance_step(previous, now, 0.002, 0.1)[0, 1]) < 0  # the lowest point rules: the root goes back
+    assert torch.allclose(stance_step(previous, now, 0.002, 0.1, swing)[0], torch.tensor([0.0, 0.04]))
 
 
 def test_stance_foot_placement_keeps_the_lowest_point_planted(gaits, offsets, skeleton):

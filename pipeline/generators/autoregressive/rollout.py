@@ -4,7 +4,9 @@ For every agent the network continues its seed's prefix one frame at a time (its
 paper §4 and §5.4) and the root is placed from the predicted root features (paper §5.4-5.5):
 
 * advance (``root_advance``): ``stance_foot`` (default) moves the root so that the lowest heel/toe point stays
-  where it stood: the body walks by its own legs and the feet do not skate. The network's ŝ alone advances the
+  where it stood: the body walks by its own legs and the feet do not skate. A foot in its swing phase (by the
+  stepping phase the network is given, ``stance_fraction``) is never that point: a generated swing foot can skim
+  lower than the stance foot. The network's ŝ alone advances the
   root faster than its strides carry it (feet then slide ~3.4x as fast as real stance feet: reports/eval.md), so
   ŝ is kept as the network's input (it conditions the motion) but no longer places the root.
   ``predicted_speed`` is the paper's placement: the root advances by ŝ (m/frame, clamped to [0, max_speed])
@@ -47,6 +49,7 @@ from pipeline.ops.geometry import (
     to_local_frame,
     unit_direction,
     wrap_angle,
+    wrap_phase,
 )
 from pipeline.ops.contacts import ContactConfig
 from pipeline.ops.footlock import lock_feet
@@ -65,6 +68,8 @@ class PlacementConfig:
     max_speed_m_s: float = 3.0
     root_advance: str = "stance_foot"  # or "predicted_speed"
     stance_softness_m: float = 0.002
+    stance_fraction: float = 1.0  # a foot swings for the rest of its stepping cycle (ops.contacts.swinging_points)
+                                  # and is then never the stance foot (1: the lowest point, whatever the phase)
     drift_seconds: float = 1.0
     max_drift_deg: float = 15.0
     guidance: float = 1.0  # classifier-free guidance w of the condition (1: none; see ``generate``)
@@ -140,18 +145,38 @@ def _root_relative(root_rotation: torch.Tensor, joint_versors: torch.Tensor, hei
     return canonical_positions(root, torch.cat([root_rotation[:, None], joint_versors], dim=1), offsets, parents)
 
 
-def stance_step(previous_feet: torch.Tensor, feet: torch.Tensor, softness_m: float, max_step: float) -> torch.Tensor:
+def stance_step(previous_feet: torch.Tensor, feet: torch.Tensor, softness_m: float, max_step: float,
+                swinging: torch.Tensor | None = None) -> torch.Tensor:
     """Ground step (N, 2) of the root that keeps the stance foot where it stood.
 
     previous_feet, feet: root-relative heel/toe points (N, 4, 3) of two consecutive frames. The stance point is the
     lowest one (weights exp(-height above the lowest / softness), so two points level with each other share);
     the root moves by the opposite of that point's root-relative horizontal motion, at most ``max_step``.
+    swinging: (N, 4) bool, points of a foot in its swing phase (``ops.contacts.swinging_points``): never the
+    stance point, unless every point swings. A generated swing foot can skim lower than the stance foot; taken as
+    the stance it would carry the root backwards (measured: a third of the frames of emotional walks).
     """
     height = 0.5 * (previous_feet[..., 1] + feet[..., 1])
+    if swinging is not None:
+        height = torch.where(swinging & ~swinging.all(-1, keepdim=True), height + SWING_LIFT_M, height)
     weight = torch.exp(-(height - height.min(-1, keepdim=True).values) / softness_m)
     step = (weight[..., None] * (previous_feet - feet)[..., [0, 2]]).sum(1) / weight.sum(1, keepdim=True)
     length = torch.linalg.vector_norm(step, dim=-1, keepdim=True)
     return step * (length.clamp(max=max_step) / length.clamp_min(1e-9))
+
+
+def swinging_points(theta: torch.Tensor, stance_fraction: float) -> torch.Tensor:
+    """(..., 4) bool in ``ops.contacts.CONTACT_POINTS`` order: the heel/toe points of a foot in its swing phase by
+    the stepping phase θ (...) (0 at a left strike, π at the next right strike): a foot is down for the first
+    ``stance_fraction`` of its cycle (about 0.6 when walking) and swings for the rest. Both feet are down in double
+    support; with ``stance_fraction`` < 0.5 (running) both may swing."""
+    cycle = 2.0 * math.pi * stance_fraction
+    left = wrap_phase(theta) >= cycle
+    right = wrap_phase(theta - math.pi) >= cycle
+    return torch.stack((left, left, right, right), dim=-1)
+
+
+SWING_LIFT_M = 1.0  # a swinging point counts as this much higher: out of the stance weights (softness ~ mm)
 
 
 def _guide(conditioned: dict[str, torch.Tensor], free: dict[str, torch.Tensor], w: float) -> dict[str, torch.Tensor]:
@@ -212,7 +237,9 @@ def generate(model: EmotiveGaitNet, seeds: Seeds, paths: torch.Tensor, emotions:
         local = _root_relative(root_rotation, current["q"][:, 1:], base_height + current["h"], offsets, parents)
         nominal = speed[:, None] * along  # the step the predicted root speed asks for
         if stance_foot:
-            step = stance_step(previous_feet, local[:, feet], cfg.stance_softness_m, cfg.max_speed_m_s / cfg.fps)
+            swinging = swinging_points(theta[:, t], cfg.stance_fraction) if cfg.stance_fraction < 1.0 else None
+            step = stance_step(previous_feet, local[:, feet], cfg.stance_softness_m, cfg.max_speed_m_s / cfg.fps,
+                               swinging)
             previous_feet = local[:, feet]
             relative = to_local_frame(step, along)  # (sideways, ahead) of the travel direction
             mean_step = mean_step + (relative - mean_step) / (cfg.drift_seconds * cfg.fps)

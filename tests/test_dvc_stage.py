@@ -128,6 +128,7 @@ def check_published(published: Path, work: Path) -> None:
     report = json.loads((work / "reports/synthesize.json").read_text())
     assert report["gaits"] == 5000 and report["copied_real_frames"] == 0 and report["finite"]
     assert report["emotion_novelty"]["passed"] and report["trajectory_novelty"]["passed"]
+    assert set(report["walking"]["synthetic"]) == {"happy", "sad", "angry", "neutral"}
     assert sorted(p.name for p in (published / "previews").glob("*.png"))
 
 

@@ -14,7 +14,7 @@ from pipeline.annotate.annotation import rebuild_clips
 from pipeline.ops.geometry import arc_lengths, to_local_frame, travel_direction, unit_direction
 from pipeline.synth.novelty import nearest_training_path, novel_emotions, training_paths
 from pipeline.synth.plan import build_plan, frame_emotions, transition_rounds
-from pipeline.synth.synthesis import copied_frames
+from pipeline.synth.synthesis import copied_frames, walking_figures
 from pipeline.synth.trajectories import TRAVEL_FRAMES, piece_from, trajectories_from_spec, trajectory_points
 from stages.common import load_params
 
@@ -109,3 +109,15 @@ def test_copied_frames_finds_a_copied_pose_even_turned(annotated):
     fake[1, 7] = real[5, 3]
     fake[1, 7, 0] = [0.0, 0.0, 1.0, 0.0]  # the root turned: still a copy
     assert copied_frames(fake, real) == 1
+
+
+def test_walking_figures_tell_a_walk_from_stepping_in_a_circle():
+    t = np.arange(61) / 30.0  # 2 s at 30 fps
+    straight = np.stack([np.zeros_like(t), 1.2 * t], -1)  # 1.2 m/s ahead
+    angle = 2 * np.pi * t / 2.0  # one full circle of radius 0.3 m in the 2 s
+    circle = np.stack([0.3 * np.sin(angle), 0.3 * (1 - np.cos(angle))], -1)
+    emotions = np.array([[1.0, 0, 0, 0], [0, 0, 1.0, 0]])
+    out = walking_figures(np.stack([straight, circle]), emotions, 30.0)
+    assert set(out) == {"happy", "angry"}
+    assert out["happy"] == {"gaits": 1, "net_speed_m_s": 1.2, "path_speed_m_s": 1.2}
+    assert out["angry"]["net_speed_m_s"] < 0.01 and abs(out["angry"]["path_speed_m_s"] - 0.3 * np.pi) < 0.01

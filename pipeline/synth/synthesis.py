@@ -194,6 +194,9 @@ def synthesis_report(work: SynthesisPlan, synthetic: dict[str, np.ndarray], cfg:
     closeness = np.array([nearest_training_path(piece_from(by_id[r["trajectory_id"]].points, r["start_m"], piece_m),
                                                 paths, piece_m)["distance_m"]
                           for r in plan[:: max(1, len(plan) // 500)]])
+    content = np.array(table.column("content").to_pylist())
+    walks = np.flatnonzero((split == "train") & (content == cfg.seed_content)
+                           & ~np.isnan(arrays["emotion"]).any(-1))
     sums = synthetic["emotion"].sum(-1)
     frame_sums = synthetic["emotion_per_frame"].sum(-1)
     min_distance = float(novelty["min_mean_distance_m"])
@@ -231,11 +234,29 @@ def synthesis_report(work: SynthesisPlan, synthetic: dict[str, np.ndarray], cfg:
                             "nearest_m_p50": round(float(np.median(closeness)), 4)}},
         "phase_from_condition": {"gaits": phase_from_condition, "why": "too few foot strikes in prefix + generated "
                                  "frames to define the stepping phase; the generator's conditioned phase is kept"},
+        "walking": {"synthetic": walking_figures(synthetic["root_path"], synthetic["emotion"], fps),
+                    "real_labelled_train_walks": walking_figures(arrays["root_path"][walks], arrays["emotion"][walks],
+                                                                 fps),
+                    "why": "net speed well below path speed: the body steps on the spot or circles"},
         "copied_real_frames": copied_frames(synthetic["rotations"], arrays["rotations"]),
         "finite": bool(all(np.isfinite(v).all() for v in synthetic.values())),
         "seconds": round(seconds, 2),
         "agent_frames_per_second": round(len(plan) * cfg.frames / seconds, 1),
     }
+
+
+def walking_figures(root_paths: np.ndarray, emotions: np.ndarray, fps: float) -> dict[str, dict[str, float]]:
+    """Per dominant emotion: gaits, median net speed (start-to-end ground distance / duration) and median path
+    speed (ground distance walked / duration), m/s. A body that steps on the spot or circles has a path speed
+    but little net speed. root_paths: (N, T, 2) ground (x, z); emotions: (N, 4) labels (no NaN rows)."""
+    seconds = (root_paths.shape[1] - 1) / fps
+    net = np.linalg.norm(root_paths[:, -1] - root_paths[:, 0], axis=-1) / seconds
+    walked = np.linalg.norm(np.diff(root_paths, axis=1), axis=-1).sum(1) / seconds
+    dominant = np.argmax(emotions, axis=-1)
+    return {name: {"gaits": int((dominant == k).sum()),
+                   "net_speed_m_s": round(float(np.median(net[dominant == k])), 3),
+                   "path_speed_m_s": round(float(np.median(walked[dominant == k])), 3)}
+            for k, name in enumerate(EMOTIONS) if (dominant == k).any()}
 
 
 def placed_root_paths(work: SynthesisPlan, root_paths: np.ndarray) -> list[tuple[str, np.ndarray, list[np.ndarray]]]:

@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from pipeline.core.emotions import EMOTIONS
-from pipeline.generators.autoregressive.critic import CriticConfig, fit_critic, style_loss
+from pipeline.generators.autoregressive.critic import CriticConfig, fit_critic, style_loss, style_match_loss
 from pipeline.generators.autoregressive.fit import mirrored
 from pipeline.generators.autoregressive.network import (
     EmotiveGaitNet,
@@ -88,6 +88,28 @@ def test_the_critic_reads_held_out_real_windows_well_above_chance(labelled, crit
     assert not any(p.requires_grad for p in critic.parameters())  # frozen: the generator cannot move it
 
 
+def test_the_critic_keeps_the_real_centroids_and_a_real_window_is_nearest_its_own(labelled, critic, offsets,
+                                                                                 skeleton):
+    arrays, _, held_rows = labelled
+    critic, _, fit = critic
+    pose = travel_frame_positions(fit.q, offsets, skeleton.parents)
+    assert critic.centroids.shape == (4, critic.statistics_mean.shape[0]) and torch.isfinite(critic.centroids).all()
+    # the crops average to the windows' own statistics only roughly; the class order of the means is what counts
+    held = GaitTensors.from_arrays(arrays, held_rows)
+    held_pose = travel_frame_positions(held.q, offsets, skeleton.parents)[:, 18:]
+    truth = held.condition[:, :4].argmax(-1)
+    with torch.no_grad():
+        own = style_match_loss_per(critic, held_pose, held.condition[:, :4])
+        other = torch.stack([style_match_loss_per(critic, held_pose, torch.nn.functional.one_hot(
+            (truth + k) % 4, 4).float()) for k in (1, 2, 3)]).mean(0)
+    assert float((own < other).double().mean()) > 0.6  # held-out real windows: nearer their own emotion's statistics
+    assert float(style_match_loss(critic, pose[:4], fit.condition[:4, :4])) > 0
+
+
+def style_match_loss_per(critic, pose, target):
+    return torch.stack([style_match_loss(critic, pose[i:i + 1], target[i:i + 1]) for i in range(len(pose))])
+
+
 def test_mismatched_conditions_change_only_labelled_gaits_and_stay_on_the_simplex(labelled):
     arrays, fit_rows, _ = labelled
     g = GaitTensors.from_arrays(arrays, fit_rows[:40])
@@ -144,12 +166,16 @@ def test_the_style_term_trains_the_generator_and_reaches_it_through_the_rollout(
     batch = g.select(slice(0, 8))
     condition, _ = mismatched_conditions(batch.condition, 1.0, torch.Generator().manual_seed(2))
     pred = rollout(model, batch, offsets, skeleton.parents, 18, condition=condition)
-    losses = generator_losses(pred, targets(batch, 18), model, offsets, skeleton.parents, LossWeights(style=1.0),
-                              torch.full((8,), 0.25), critic, style_targets(condition))
+    losses = generator_losses(pred, targets(batch, 18), model, offsets, skeleton.parents,
+                              LossWeights(style=1.0, style_match=1.0), torch.full((8,), 0.25), critic,
+                              style_targets(condition))
     assert losses.style is not None and float(losses.style.detach()) > 0
-    losses.style.backward()
-    grads = {n: p.grad for n, p in model.named_parameters() if p.grad is not None and float(p.grad.abs().sum()) > 0}
-    assert any(n.startswith("gru") for n in grads) and any(n.startswith("enc_affect") for n in grads)
+    assert losses.style_match is not None and float(losses.style_match.detach()) > 0
+    for term in (losses.style, losses.style_match):
+        model.zero_grad()
+        term.backward(retain_graph=True)
+        grads = {n: p.grad for n, p in model.named_parameters() if p.grad is not None and float(p.grad.abs().sum()) > 0}
+        assert any(n.startswith("gru") for n in grads) and any(n.startswith("enc_affect") for n in grads)
     # a mismatched pair's content terms count with its weight: all at 0.25 is the same mean as all at 1
     same = generator_losses(pred, targets(batch, 18), model, offsets, skeleton.parents, LossWeights(),
                             torch.ones(8))

@@ -56,6 +56,9 @@ class StyleCritic(nn.Module):
         self.register_buffer("affective_std", torch.ones(18))
         self.register_buffer("statistics_mean", torch.zeros(STATISTICS))
         self.register_buffer("statistics_std", torch.ones(STATISTICS))
+        # per emotion, the mean standardised statistics of the real crops: what the style-matching term pulls a
+        # generated gait towards (a linear critic reads a few directions; the rest of the statistics can drift)
+        self.register_buffer("centroids", torch.zeros(len(EMOTIONS), STATISTICS))
 
     def statistics(self, pose: torch.Tensor) -> torch.Tensor:
         """(B, T, 21, 3) travel-frame positions -> (B, STATISTICS), before standardisation."""
@@ -65,8 +68,12 @@ class StyleCritic(nn.Module):
         speed = torch.linalg.vector_norm(pose[:, 1:, 1:] - pose[:, :-1, 1:], dim=-1)  # (B, T-1, 20) m/frame
         return torch.cat([a.mean(1), a.std(1), speed.mean(1), speed.std(1)], -1)
 
+    def standardised(self, pose: torch.Tensor) -> torch.Tensor:
+        """(B, T, 21, 3) -> (B, STATISTICS) in the real crops' standard units."""
+        return (self.statistics(pose) - self.statistics_mean) / self.statistics_std
+
     def forward(self, pose: torch.Tensor) -> torch.Tensor:
-        return self.linear((self.statistics(pose) - self.statistics_mean) / self.statistics_std)
+        return self.linear(self.standardised(pose))
 
 
 def random_crops(pose: torch.Tensor, frames: int, crops: int, generator: torch.Generator) -> torch.Tensor:
@@ -95,6 +102,7 @@ def fit_critic(pose: torch.Tensor, emotion: torch.Tensor, affective_bounds: tupl
         critic.statistics_mean.copy_(x.mean(0))
         critic.statistics_std.copy_(x.std(0).clamp_min(1e-6))
         x = (x - critic.statistics_mean) / critic.statistics_std
+        critic.centroids.copy_((target.T @ x) / target.sum(0).clamp_min(1e-12)[:, None])
     # class-balanced: the labelled windows are mostly neutral
     weight = target.sum(0).sum() / (len(EMOTIONS) * target.sum(0).clamp_min(1.0))
     optimiser = torch.optim.Adam(critic.linear.parameters(), lr=cfg.learning_rate, weight_decay=cfg.weight_decay)
@@ -123,3 +131,12 @@ def style_loss(logits: torch.Tensor, target: torch.Tensor, weight: torch.Tensor 
         per = per * weight
     per = per.sum(-1)
     return per.mean() if reduction == "mean" else per
+
+
+def style_match_loss(critic: StyleCritic, pose: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Huber distance (per statistic, mean over them and over gaits) of generated gaits' standardised statistics
+    (pose (B, T, 21, 3)) from the real statistics of their target emotions (B, 4): target @ centroids. Unlike
+    the critic's cross-entropy, which a gait satisfies by going far along the few directions a linear reader
+    uses, it asks for the real emotion's posture and limb speeds in every statistic."""
+    wanted = target @ critic.centroids
+    return torch.nn.functional.huber_loss(critic.standardised(pose), wanted, reduction="none", delta=1.0).mean()

@@ -39,7 +39,7 @@ from torch import nn
 
 from pipeline.core.emotions import EMOTIONS
 from pipeline.core.skeleton import canonical_skeleton
-from pipeline.generators.autoregressive.critic import style_loss
+from pipeline.generators.autoregressive.critic import style_loss, style_match_loss
 from pipeline.ops.features import affective_features
 from pipeline.ops.geometry import unit_direction, wrap_angle_atan2
 from pipeline.ops.kinematics import canonical_positions
@@ -89,6 +89,7 @@ class LossWeights:
     foot: float = 1.0
     versor: float = 1.0
     style: float = 0.0  # the style critic's reading of the generated frames vs the condition (critic.py)
+    style_match: float = 0.0  # the generated frames' statistics vs the real ones of the condition (critic.py)
 
 
 def _mlp(sizes: Sequence[int], final_activation: bool = True) -> nn.Sequential:
@@ -223,10 +224,12 @@ class Losses:
     foot: torch.Tensor
     total: torch.Tensor
     style: torch.Tensor | None = None
+    style_match: torch.Tensor | None = None
     terms: dict[str, torch.Tensor] = field(default_factory=dict)
 
     def as_floats(self) -> dict[str, float]:
-        names = ("motion", "pose", "affective", "root", "foot", "total") + (("style",) if self.style is not None else ())
+        names = ("motion", "pose", "affective", "root", "foot", "total") + tuple(
+            k for k in ("style", "style_match") if getattr(self, k) is not None)
         return {k: float(getattr(self, k).detach()) for k in names}
 
 
@@ -263,7 +266,7 @@ def generator_losses(pred: dict[str, torch.Tensor], target: dict[str, torch.Tens
     foot = over_gaits((world_feet(predicted_pose, pred["s"], pred["h"], target) - target["feet"]).abs().sum((-1, -2)))
     total = (weights.motion * motion + weights.pose * pose + weights.affective * affective + weights.root * root
              + weights.foot * foot)
-    style = None
+    style, match = None, None
     if critic is not None and style_target is not None:
         conditioned = ~torch.isnan(style_target).any(-1)
         if conditioned.any():
@@ -271,4 +274,9 @@ def generator_losses(pred: dict[str, torch.Tensor], target: dict[str, torch.Tens
         else:
             style = predicted_pose.new_zeros(())
         total = total + weights.style * style
-    return Losses(motion=motion, pose=pose, affective=affective, root=root, foot=foot, total=total, style=style)
+        if weights.style_match > 0.0:
+            match = (style_match_loss(critic, predicted_pose[conditioned], style_target[conditioned])
+                     if conditioned.any() else predicted_pose.new_zeros(()))
+            total = total + weights.style_match * match
+    return Losses(motion=motion, pose=pose, affective=affective, root=root, foot=foot, total=total, style=style,
+                  style_match=match)

@@ -273,7 +273,7 @@ def train_generator(train: GaitTensors, val: GaitTensors, offsets: torch.Tensor,
     model = EmotiveGaitNet(model_cfg)
     model.set_statistics(train.affective, train.scalars())
     critic, critic_figures = None, None
-    if weights.style > 0.0:
+    if weights.style > 0.0 or weights.style_match > 0.0:
         labelled = train.condition[:, -1] > 0.5
         pose = travel_frame_positions(train.q[labelled], offsets.to(torch.float32), parents)
         critic, critic_figures = fit_critic(pose, train.condition[labelled, :-1],

@@ -9,7 +9,8 @@ import pytest
 import torch
 
 from pipeline.core.emotions import EMOTIONS
-from pipeline.generators.autoregressive.critic import CriticConfig, fit_critic, style_loss, style_match_loss
+from pipeline.generators.autoregressive.critic import (CriticConfig, fit_critic, random_crops, style_loss,
+                                                     style_match_loss)
 from pipeline.generators.autoregressive.fit import mirrored
 from pipeline.generators.autoregressive.network import (
     EmotiveGaitNet,
@@ -88,26 +89,33 @@ def test_the_critic_reads_held_out_real_windows_well_above_chance(labelled, crit
     assert not any(p.requires_grad for p in critic.parameters())  # frozen: the generator cannot move it
 
 
+def _match_per_gait(critic, pose, target):
+    """style_match_loss of each gait on its own (B,)."""
+    return torch.stack([style_match_loss(critic, pose[i:i + 1], target[i:i + 1]) for i in range(len(pose))])
+
+
 def test_the_critic_keeps_the_real_centroids_and_a_real_window_is_nearest_its_own(labelled, critic, offsets,
                                                                                  skeleton):
     arrays, _, held_rows = labelled
     critic, _, fit = critic
     pose = travel_frame_positions(fit.q, offsets, skeleton.parents)
-    assert critic.centroids.shape == (4, critic.statistics_mean.shape[0]) and torch.isfinite(critic.centroids).all()
-    # the crops average to the windows' own statistics only roughly; the class order of the means is what counts
+    # the centroids are the class means of the standardised statistics of the very crops the critic was fitted on
+    cfg = CriticConfig(epochs=200)
+    crops = random_crops(pose, cfg.crop_frames, cfg.crops, torch.Generator().manual_seed(cfg.seed))
+    label = fit.condition[:, :4].argmax(-1).repeat_interleave(cfg.crops)
+    with torch.no_grad():
+        x = critic.standardised(crops)
+    for k in label.unique().tolist():
+        assert torch.allclose(critic.centroids[k], x[label == k].mean(0), atol=1e-4)
     held = GaitTensors.from_arrays(arrays, held_rows)
     held_pose = travel_frame_positions(held.q, offsets, skeleton.parents)[:, 18:]
     truth = held.condition[:, :4].argmax(-1)
     with torch.no_grad():
-        own = style_match_loss_per(critic, held_pose, held.condition[:, :4])
-        other = torch.stack([style_match_loss_per(critic, held_pose, torch.nn.functional.one_hot(
+        own = _match_per_gait(critic, held_pose, held.condition[:, :4])
+        other = torch.stack([_match_per_gait(critic, held_pose, torch.nn.functional.one_hot(
             (truth + k) % 4, 4).float()) for k in (1, 2, 3)]).mean(0)
     assert float((own < other).double().mean()) > 0.6  # held-out real windows: nearer their own emotion's statistics
     assert float(style_match_loss(critic, pose[:4], fit.condition[:4, :4])) > 0
-
-
-def style_match_loss_per(critic, pose, target):
-    return torch.stack([style_match_loss(critic, pose[i:i + 1], target[i:i + 1]) for i in range(len(pose))])
 
 
 def test_mismatched_conditions_change_only_labelled_gaits_and_stay_on_the_simplex(labelled):

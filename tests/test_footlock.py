@@ -11,7 +11,7 @@ import torch
 from pipeline.evaluation.autoregressive import skating_speed
 from pipeline.ops.contacts import ContactConfig, foot_contacts
 from pipeline.ops.footlock import FOOT_POINTS, LEGS, lock_feet, reach, stance_offsets
-from pipeline.ops.kinematics import forward_kinematics
+from pipeline.ops.kinematics import canonical_kinematics
 
 FPS = 30.0
 
@@ -26,8 +26,7 @@ def walks(reference_annotated, skeleton):
 
 
 def _fk(rot, root, offsets, parents):
-    translations = torch.cat([root[..., None, :], offsets[1:].expand(rot.shape[:-2] + (20, 3))], dim=-2)
-    return forward_kinematics(rot, translations, parents)
+    return canonical_kinematics(root, rot, offsets, parents)
 
 
 def test_reach_to_the_current_ankle_changes_nothing_and_reaches_a_moved_ankle(walks, skeleton):

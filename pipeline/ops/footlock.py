@@ -20,13 +20,17 @@ from collections.abc import Sequence
 
 import torch
 
-from pipeline.ops.contacts import ContactConfig, foot_contacts
-from pipeline.ops.kinematics import forward_kinematics
+from pipeline.core.skeleton import canonical_skeleton
+from pipeline.ops.contacts import CONTACT_POINTS, ContactConfig, foot_contacts
+from pipeline.ops.kinematics import canonical_kinematics
 from pipeline.ops.quaternion import qbetween, qconj, qmul, qrot
 
+_SKELETON = canonical_skeleton()
+FOOT_POINTS = tuple(_SKELETON.index(name) for name in CONTACT_POINTS)  # the joints of the contact points
 # Per side: hip, knee, ankle (heel), toe joints, and the foot's (heel, toe) columns of CONTACT_POINTS.
-LEGS = (((1, 2, 3, 4), (0, 1)), ((5, 6, 7, 8), (2, 3)))
-FOOT_POINTS = (3, 4, 7, 8)  # the joints of CONTACT_POINTS: left heel, left toe, right heel, right toe
+LEGS = tuple((tuple(_SKELETON.index(f"{side}_{joint}") for joint in ("hip", "knee", "heel", "toe")),
+              (CONTACT_POINTS.index(f"{side}_heel"), CONTACT_POINTS.index(f"{side}_toe")))
+             for side in ("left", "right"))
 
 
 def stance_offsets(points: torch.Tensor, contacts: torch.Tensor) -> torch.Tensor:
@@ -97,9 +101,8 @@ def lock_feet(rotations: torch.Tensor, root_positions: torch.Tensor, offsets: to
     """Gaits with their stance feet held still: rotations (N, T, 21, 4) local (row 0 the root's world rotation),
     root_positions (N, T, 3), offsets (21, 3) -> (rotations, positions (N, T, 21, 3)). Frames whose feet need no
     correction keep their rotations exactly."""
-    translations = torch.cat([root_positions[..., None, :], offsets[1:].to(rotations.dtype)
-                              .expand(rotations.shape[:-2] + (offsets.shape[0] - 1, 3))], dim=-2)
-    positions, globals_ = forward_kinematics(rotations, translations, parents)
+    offsets = offsets.to(rotations.dtype)
+    positions, globals_ = canonical_kinematics(root_positions, rotations, offsets, parents)
     down = foot_contacts(positions[..., list(FOOT_POINTS), :], fps, contacts)
     shift = stance_offsets(positions[..., list(FOOT_POINTS), :], down)  # (N, T, 2, 2)
     out = rotations
@@ -110,4 +113,4 @@ def lock_feet(rotations: torch.Tensor, root_positions: torch.Tensor, offsets: to
         locked = reach(out, positions, globals_, leg, target)
         moved = (move.abs().amax(-1) > 0)[..., None, None]
         out = torch.where(moved, locked, out)
-    return out, forward_kinematics(out, translations, parents)[0]
+    return out, canonical_kinematics(root_positions, out, offsets, parents)[0]

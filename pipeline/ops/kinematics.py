@@ -84,18 +84,27 @@ def rotations_from_bvh_form(joint_rotations: torch.Tensor, parents: Sequence[int
     return moved
 
 
+def canonical_kinematics(
+    root_positions: torch.Tensor,
+    rotations: torch.Tensor,
+    offsets: torch.Tensor,
+    parents: Sequence[int],
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Positions (..., J, 3) and global rotations (..., J, 4) on a fixed-offset skeleton (the canonical one).
+
+    root_positions: (..., 3); rotations: (..., J, 4); offsets: (J, 3) rest offsets (row 0 unused).
+    """
+    translations = torch.cat(
+        [root_positions.unsqueeze(-2), offsets[1:].expand(rotations.shape[:-2] + offsets[1:].shape)], dim=-2
+    )
+    return forward_kinematics(rotations, translations, parents)
+
+
 def canonical_positions(
     root_positions: torch.Tensor,
     rotations: torch.Tensor,
     offsets: torch.Tensor,
     parents: Sequence[int],
 ) -> torch.Tensor:
-    """Positions on a fixed-offset skeleton (the canonical one).
-
-    root_positions: (..., 3); rotations: (..., J, 4); offsets: (J, 3) rest offsets (row 0 unused).
-    Returns (..., J, 3).
-    """
-    translations = torch.cat(
-        [root_positions.unsqueeze(-2), offsets[1:].expand(rotations.shape[:-2] + offsets[1:].shape)], dim=-2
-    )
-    return forward_kinematics(rotations, translations, parents)[0]
+    """Positions (..., J, 3) on a fixed-offset skeleton (``canonical_kinematics`` without the global rotations)."""
+    return canonical_kinematics(root_positions, rotations, offsets, parents)[0]

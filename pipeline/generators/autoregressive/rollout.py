@@ -6,9 +6,9 @@ paper §4 and §5.4) and the root is placed from the predicted root features (pa
 * advance (``root_advance``): ``stance_foot`` (default) moves the root so that the lowest heel/toe point stays
   where it stood: the body walks by its own legs and the feet do not skate. A foot in its swing phase (by the
   stepping phase the network is given, ``stance_fraction``) is never that point: a generated swing foot can skim
-  lower than the stance foot. The network's ŝ alone advances the
-  root faster than its strides carry it (feet then slide ~3.4x as fast as real stance feet: reports/eval.md), so
-  ŝ is kept as the network's input (it conditions the motion) but no longer places the root.
+  lower than the stance foot. The network's ŝ alone advances the root faster than its strides carry it (feet
+  then slide ~3.4x as fast as real stance feet: reports/eval.md), so ŝ is kept as the network's input (it
+  conditions the motion) but no longer places the root.
   ``predicted_speed`` is the paper's placement: the root advances by ŝ (m/frame, clamped to [0, max_speed])
   along the travel direction.
 * direction: the travel direction turns towards a point ``lookahead_m`` ahead on the target path (pure
@@ -68,7 +68,7 @@ class PlacementConfig:
     max_speed_m_s: float = 3.0
     root_advance: str = "stance_foot"  # or "predicted_speed"
     stance_softness_m: float = 0.002
-    stance_fraction: float = 1.0  # a foot swings for the rest of its stepping cycle (ops.contacts.swinging_points)
+    stance_fraction: float = 1.0  # a foot swings for the rest of its stepping cycle (``swinging_points``)
                                   # and is then never the stance foot (1: the lowest point, whatever the phase)
     drift_seconds: float = 1.0
     max_drift_deg: float = 15.0
@@ -145,6 +145,9 @@ def _root_relative(root_rotation: torch.Tensor, joint_versors: torch.Tensor, hei
     return canonical_positions(root, torch.cat([root_rotation[:, None], joint_versors], dim=1), offsets, parents)
 
 
+SWING_LIFT_M = 1.0  # a swinging point counts as this much higher: out of the stance weights (softness ~ mm)
+
+
 def stance_step(previous_feet: torch.Tensor, feet: torch.Tensor, softness_m: float, max_step: float,
                 swinging: torch.Tensor | None = None) -> torch.Tensor:
     """Ground step (N, 2) of the root that keeps the stance foot where it stood.
@@ -152,7 +155,7 @@ def stance_step(previous_feet: torch.Tensor, feet: torch.Tensor, softness_m: flo
     previous_feet, feet: root-relative heel/toe points (N, 4, 3) of two consecutive frames. The stance point is the
     lowest one (weights exp(-height above the lowest / softness), so two points level with each other share);
     the root moves by the opposite of that point's root-relative horizontal motion, at most ``max_step``.
-    swinging: (N, 4) bool, points of a foot in its swing phase (``ops.contacts.swinging_points``): never the
+    swinging: (N, 4) bool, points of a foot in its swing phase (``swinging_points``): never the
     stance point, unless every point swings. A generated swing foot can skim lower than the stance foot; taken as
     the stance it would carry the root backwards (measured: a third of the frames of emotional walks).
     """
@@ -174,9 +177,6 @@ def swinging_points(theta: torch.Tensor, stance_fraction: float) -> torch.Tensor
     left = wrap_phase(theta) >= cycle
     right = wrap_phase(theta - math.pi) >= cycle
     return torch.stack((left, left, right, right), dim=-1)
-
-
-SWING_LIFT_M = 1.0  # a swinging point counts as this much higher: out of the stance weights (softness ~ mm)
 
 
 def _guide(conditioned: dict[str, torch.Tensor], free: dict[str, torch.Tensor], w: float) -> dict[str, torch.Tensor]:

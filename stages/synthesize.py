@@ -49,10 +49,11 @@ def main(params_path: Path | None = None, in_gaits: Path = IN_GAITS, in_model: P
     write_parquet(synthetic_table(work.plan, recipes, synthetic, family.model_sha256, work.table), out / "gaits.parquet")
     write_csv(PLAN_COLUMNS, plan_rows(work.plan, recipes), out / "plan.csv")
     report = synthesis_report(work, synthetic, cfg, float(params["ingest"]["target_fps"]), family.model_sha256,
-                              fallback, seconds)
+                              fallback)
     write_json(report, out_report)
     render_trajectories(placed_root_paths(work, synthetic["root_path"]), out_plot)
-    print(f"synthesize: {report['gaits']} gaits in {seconds:.1f} s; "
+    print(f"synthesize: {report['gaits']} gaits in {seconds:.1f} s "
+          f"({report['gaits'] * cfg.frames / seconds:.0f} agent-frames/s); "
           f"emotions novel {report['emotion_novelty']['passed']}, "
           f"trajectories novel {report['trajectory_novelty']['passed']}, copied frames {report['copied_real_frames']}")
     return report

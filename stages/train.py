@@ -1,7 +1,7 @@
 """DVC stage `train`: the autoregressive generator and its ablation(s), trained on the train split, checked on val.
 
 data/split/gaits.parquet -> data/models/{full,no_affect}.pt (one per params variant), reports/train.json (DVC
-metrics: final losses, the style critic's figures, checkpoint sha256, seconds), reports/train_curves.csv (DVC
+metrics: final losses, the style critic's figures, checkpoint sha256; no timings, which are printed), reports/train_curves.csv (DVC
 plots: loss per epoch and variant).
 The variants (params.yaml ``train.variants``) train in parallel processes, ``train.threads`` torch threads each
 (pipeline/generators/autoregressive/fit.py).
@@ -41,7 +41,8 @@ def main(params_path: Path | None = None, in_gaits: Path = IN_GAITS, out_models:
     start = time.perf_counter()
     results = fit_variants(in_gaits, variants, load_skeleton(SKELETON), int(p.get("parallel", 1)),
                            int(p.get("progress_every", 25)), critic_config(p))
-    report: dict[str, Any] = {"seconds": round(time.perf_counter() - start, 1), "variants": {}}
+    seconds = time.perf_counter() - start
+    report: dict[str, Any] = {"variants": {}}
     for res in results:
         path = out_models / f"{res['name']}.pt"
         report["variants"][res["name"]] = {
@@ -50,9 +51,11 @@ def main(params_path: Path | None = None, in_gaits: Path = IN_GAITS, out_models:
     report["configs"] = {name: config_dicts(*variants[name]) for name in variants}
     write_json(report, out_report)
     write_csv(CURVE_COLUMNS, curve_rows(results), out_curves)
-    for name, v in report["variants"].items():
-        print(f"train: {name}: val loss {v['val'].get('total', float('nan')):.3f} after {v['epochs']} epochs "
-              f"({v['seconds']:.0f} s), sha256 {v['sha256'][:12]}")
+    for res in results:
+        v = report["variants"][res["name"]]
+        print(f"train: {res['name']}: val loss {v['val'].get('total', float('nan')):.3f} after {v['epochs']} epochs "
+              f"({res['seconds']:.0f} s), sha256 {v['sha256'][:12]}")
+    print(f"train: {len(results)} variant(s) in {seconds:.0f} s")
     return report
 
 

@@ -115,9 +115,10 @@ def fit_variants(in_gaits: Path, variants: Variants, skeleton: Skeleton, workers
 
 
 def variant_summary(result: dict[str, Any]) -> dict[str, Any]:
-    """A variant's report entry: seconds, epochs, final teacher forcing and its final train/val losses."""
+    """A variant's report entry: epochs, the critic's figures, final teacher forcing and its final train/val losses.
+    No seconds: the report's md5 reaches the published provenance, so it holds only what the inputs determine."""
     final = result["history"][-1]
-    return {"seconds": round(result["seconds"], 1), "epochs": final["epoch"], "critic": result.get("critic"),
+    return {"epochs": final["epoch"], "critic": result.get("critic"),
             "final_teacher_forcing": final["teacher_forcing"],
             "train": {k[6:]: round(v, 5) for k, v in final.items() if k.startswith("train_")},
             "val": {k[4:]: round(v, 5) for k, v in final.items() if k.startswith("val_")}}

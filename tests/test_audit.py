@@ -6,6 +6,7 @@ confusion matrices (the recognisers on real gaits: tests/test_recognition.py). (
 
 from __future__ import annotations
 
+import dataclasses
 import html
 import json
 import re
@@ -17,6 +18,7 @@ import pytest
 
 from pipeline.audit.metrics import (
     AuditConfig,
+    augmentation_draw,
     clip_identity,
     describe_affective_feature,
     feature_descriptions,
@@ -25,6 +27,7 @@ from pipeline.audit.metrics import (
     normalised_entropy,
     parse_affective_name,
     recognisability,
+    steady_label,
 )
 from pipeline.audit.report import verdict_lines
 from pipeline.audit.run import audit_frame
@@ -192,20 +195,24 @@ def test_the_page_leads_with_a_verdict_whose_numbers_are_the_metrics(page):
         assert entry["families"][family]["synthetic"] == entry["synthetic"]  # one family: all synthetic gaits'
         syn, real, delta, delta_ci = (entry["synthetic"], entry["real_held_out"], entry["augmentation_delta"],
                                       entry["augmentation_delta_ci95"])
+        every, every_ci = entry["augmentation_all_delta"], entry["augmentation_all_delta_ci95"]
         expected = [f"{entry['name']}: balanced accuracy {pct(syn['balanced_accuracy_mean'])} "
                     f"{ci(syn['balanced_accuracy_ci95'])} vs real val + test {pct(real['balanced_accuracy_mean'])} "
                     f"{ci(real['balanced_accuracy_ci95'])}, accuracy {pct(syn['accuracy_mean'])} (majority class "
                     f"{pct(syn['majority_baseline']['accuracy'])})",
                     f"{entry['name']} {pts(delta['macro_f1'])} pts (CI {pts(delta_ci['macro_f1'][0])} to "
-                    f"{pts(delta_ci['macro_f1'][1])} pts)"]
+                    f"{pts(delta_ci['macro_f1'][1])} pts)",
+                    f"{entry['name']} {pts(every['macro_f1'])} pts (CI {pts(every_ci['macro_f1'][0])} to "
+                    f"{pts(every_ci['macro_f1'][1])} pts)"]
         for part in expected:
             assert part in line, (part, line)
         figures += [100 * v for v in (syn["balanced_accuracy_mean"], *syn["balanced_accuracy_ci95"],
                                       real["balanced_accuracy_mean"], *real["balanced_accuracy_ci95"],
                                       syn["accuracy_mean"], syn["majority_baseline"]["accuracy"], delta["macro_f1"],
-                                      *delta_ci["macro_f1"])]
+                                      *delta_ci["macro_f1"], every["macro_f1"], *every_ci["macro_f1"])]
     assert line.startswith("generator (generator_condition): 20 synthetic gaits recognised as intended — ")
     assert "chance 25.0 %" in line and "Augmentation, macro-F1 on real val + test: " in line
+    assert line.index("Augmentation") < line.index("with every synthetic gait added at weight one: ")
     # every number in the line is one of the metrics' (as a percentage or points), none invented
     for found in re.findall(r"(?<![A-Za-z\d.–])[−+]?\d+(?:\.\d+)?", line.split(":", 1)[1].replace("–", " ")):
         assert min(abs(abs(float(found.replace("−", "-"))) - abs(f)) for f in figures) < 0.051, found
@@ -220,20 +227,57 @@ def test_the_audit_metrics_carry_both_recognisers_intervals_and_memorisation(pag
     assert r["seeds"] == {"summary_mlp": [0, 1], "temporal_cnn": [0]}
     for kind in RECOGNISERS:
         entry = r["by_recogniser"][kind]
-        for key in ("real_held_out", "synthetic", "augmented_real_held_out"):
+        for key in ("real_held_out", "synthetic", "augmented_real_held_out", "augmented_all_real_held_out"):
             for s in ("accuracy", "balanced_accuracy", "macro_f1"):
                 lo, hi = entry[key][f"{s}_ci95"]
                 assert 0.0 <= lo <= hi <= 1.0 and {f"{s}_mean", f"{s}_std"} <= set(entry[key])
             assert set(entry[key]["majority_baseline"]) == {"class", "accuracy", "balanced_accuracy", "macro_f1"}
         assert entry["real_held_out"]["clips"] == 12 and entry["synthetic"]["clips"] == 20
-        for s, (lo, hi) in entry["augmentation_delta_ci95"].items():
-            assert -1.0 <= lo <= hi <= 1.0 and s in entry["augmentation_delta"]
+        for key in ("augmentation", "augmentation_all"):
+            for s, (lo, hi) in entry[f"{key}_delta_ci95"].items():
+                assert -1.0 <= lo <= hi <= 1.0 and s in entry[f"{key}_delta"]
+    # 48 labelled real train gaits, one synthetic per real: all 20 synthetic gaits (none has per-frame labels)
+    assert r["augmentation"]["drawn"] == {"all": 20} and r["augmentation"]["eligible"] == {"all": 20}
     memo = metrics["memorisation"]
     assert memo["train_windows"] == 53 and memo["real_held_out"]["gaits"] == 24 and memo["synthetic"]["gaits"] == 20
     for key in ("real_held_out", "synthetic"):
         assert 0 < memo[key]["p5"] <= memo[key]["median"] <= memo[key]["p95"]
     assert isinstance(memo["check"]["synthetic_median_ge_real_heldout_median"], bool)
     assert "memorisation.png" in text and "No memorisation" in text
+
+
+def test_a_transition_whose_dominant_emotion_switches_is_no_whole_gait_example():
+    steady_run = np.repeat(np.array([[0.6, 0.3, 0.1, 0.0]]), 10, axis=0)
+    blend = np.linspace(0, 1, 10)[:, None]
+    switching = (1 - blend) * np.array([0.7, 0.1, 0.1, 0.1]) + blend * np.array([0.1, 0.1, 0.7, 0.1])
+    shading = (1 - blend) * np.array([0.7, 0.1, 0.1, 0.1]) + blend * np.array([0.5, 0.1, 0.3, 0.1])
+    frame = pd.DataFrame({"emotion_per_frame": [steady_run, switching, shading, None]})
+    assert steady_label(frame).tolist() == [True, False, True, True]
+    assert steady_label(frame.drop(columns="emotion_per_frame")).tolist() == [True] * 4
+
+
+def test_the_augmentation_draw_is_seeded_without_replacement_and_capped_by_the_pool():
+    pool = np.arange(100, 140)
+    drawn = augmentation_draw(pool, 12, seed=3)
+    assert len(set(drawn)) == 12 and set(drawn) <= set(pool) and list(drawn) == sorted(drawn)
+    assert np.array_equal(drawn, augmentation_draw(pool, 12, seed=3))
+    assert not np.array_equal(drawn, augmentation_draw(pool, 12, seed=4))
+    assert np.array_equal(augmentation_draw(pool, 99, seed=3), pool)
+
+
+def test_augmentation_draws_per_real_gait_only_from_gaits_whose_label_holds():
+    frame, _ = _frame()
+    synthetic = np.flatnonzero(frame["kind"] == "synthetic")
+    per_frame = [np.repeat(e[None], FRAMES, 0) if e is not None else None for e in frame["emotion"]]
+    for i in synthetic[:8]:  # eight transitions that switch dominant emotion halfway
+        per_frame[i] = np.concatenate([per_frame[i][: FRAMES // 2], np.roll(per_frame[i][FRAMES // 2:], 1, -1)])
+    frame["emotion_per_frame"] = per_frame
+    cfg = dataclasses.replace(AUDIT, synthetic_per_real=0.25, augment_with_all=False,
+                              seeds={"summary_mlp": (0,), "temporal_cnn": (0,)})
+    r = recognisability(frame, EMOTIONS, cfg)
+    assert r["augmentation"]["eligible"] == {"all": 12} and r["augmentation"]["drawn"] == {"all": 12}
+    assert "augmentation_delta" in r["by_recogniser"]["summary_mlp"]
+    assert "augmentation_all_delta" not in r["by_recogniser"]["summary_mlp"]
 
 
 def test_a_real_clip_is_its_source_file_and_a_synthetic_gait_its_own_unit():

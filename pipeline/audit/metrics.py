@@ -269,22 +269,28 @@ class AuditConfig:
     bootstrap_resamples: int = 1000
     memorisation_frame_stride: int = 2
     memorisation_candidates: int = 8
+    # augmentation (``recognisability``): per seed, this many synthetic gaits per labelled real train gait, drawn
+    # from those whose label holds in every frame; and, beside it, every synthetic gait at weight one
+    synthetic_per_real: float = 1.0
+    augment_with_all: bool = True
 
     @classmethod
     def from_dict(cls, p: dict[str, Any]) -> "AuditConfig":
         """From params.yaml ``audit`` (recognisers, seeds per recogniser, test_splits, bootstrap_resamples,
-        memorisation {frame_stride, candidates})."""
+        memorisation {frame_stride, candidates}, augmentation {synthetic_per_real, with_all})."""
         seeds = {k: tuple(int(s) for s in v) for k, v in p["seeds"].items()}
         unknown = set(seeds) - set(RECOGNISERS)
         if unknown:
             raise KeyError(f"audit.seeds: expected recognisers among {', '.join(RECOGNISERS)}, found "
                            f"{', '.join(sorted(unknown))}")
-        m = p.get("memorisation", {})
+        m, a = p.get("memorisation", {}), p.get("augmentation", {})
         return cls(recognisers=RecogniserConfig.from_dict(p.get("recognisers")), seeds=seeds,
                    test_splits=tuple(p.get("test_splits", cls.test_splits)),
                    bootstrap_resamples=int(p.get("bootstrap_resamples", cls.bootstrap_resamples)),
                    memorisation_frame_stride=int(m.get("frame_stride", cls.memorisation_frame_stride)),
-                   memorisation_candidates=int(m.get("candidates", cls.memorisation_candidates)))
+                   memorisation_candidates=int(m.get("candidates", cls.memorisation_candidates)),
+                   synthetic_per_real=float(a.get("synthetic_per_real", cls.synthetic_per_real)),
+                   augment_with_all=bool(a.get("with_all", cls.augment_with_all)))
 
 
 def clip_identity(frame: pd.DataFrame) -> np.ndarray:
@@ -296,6 +302,31 @@ def clip_identity(frame: pd.DataFrame) -> np.ndarray:
     has_file = frame["source_file"].notna().to_numpy() & (frame["kind"] == "real").to_numpy()
     files = (frame["source"].astype(str) + "/" + frame["source_file"].astype(str)).to_numpy()
     return np.where(has_file, files, ids)
+
+
+def steady_label(frame: pd.DataFrame) -> np.ndarray:
+    """Per gait: True where its whole-gait label holds in every frame, i.e. the dominant emotion of its per-frame
+    label (``emotion_per_frame``) is the same throughout. A transition whose dominant emotion changes shows two
+    emotions under one whole-gait label, so it is no whole-gait training example. Without per-frame labels, every
+    gait is steady."""
+    if "emotion_per_frame" not in frame:
+        return np.ones(len(frame), bool)
+    out = np.ones(len(frame), bool)
+    for i, per_frame in enumerate(frame["emotion_per_frame"]):
+        if per_frame is None or (isinstance(per_frame, float) and math.isnan(per_frame)):
+            continue
+        per_frame = np.asarray(per_frame, dtype=np.float64)
+        if per_frame.ndim == 2 and len(per_frame) and np.isfinite(per_frame).all():
+            dominant = per_frame.argmax(-1)
+            out[i] = bool((dominant == dominant[0]).all())
+    return out
+
+
+def augmentation_draw(pool: np.ndarray, count: int, seed: int) -> np.ndarray:
+    """``count`` row indices drawn without replacement from ``pool`` (all of it when smaller), sorted; seeded."""
+    if count >= len(pool):
+        return np.sort(pool)
+    return np.sort(np.random.default_rng(seed).choice(pool, size=count, replace=False))
 
 
 def generator_families(frame: pd.DataFrame) -> dict[str, np.ndarray]:
@@ -352,8 +383,13 @@ def recognisability(frame: pd.DataFrame, names: Sequence[str], cfg: AuditConfig 
     * trained on the real train split's labelled gaits, tested on the labelled real held-out gaits
       (``cfg.test_splits``, ``real_held_out``) and on the synthetic gaits against their intended dominant emotion
       (``synthetic``);
-    * augmentation: trained on real train + synthetic gaits, tested on the same real held-out gaits
+    * augmentation: trained on real train + synthetic gaits, tested on the same real held-out gaits. The protocol
+      (fixed before it was first measured): per seed, ``cfg.synthetic_per_real`` synthetic gaits per labelled real
+      train gait, drawn from those whose label holds in every frame (``steady_label``), so the synthetic gaits
+      supplement the real ones instead of outnumbering them 20 to 1 and no transition is taught under one label
       (``augmented_real_held_out``; ``augmentation_delta`` and its paired interval ``augmentation_delta_ci95``).
+      Beside it (``cfg.augment_with_all``), the naive use: every synthetic gait at weight one
+      (``augmented_all_real_held_out``, ``augmentation_all_delta``, ``augmentation_all_delta_ci95``).
 
     Every test set reports accuracy, balanced accuracy, macro-F1 and its majority-class baseline. The synthetic
     figures are given for all synthetic gaits together and per generator family (``families``; one family: the
@@ -384,6 +420,15 @@ def recognisability(frame: pd.DataFrame, names: Sequence[str], cfg: AuditConfig 
                            "classes": list(names), "chance_accuracy": round(1.0 / k, 4),
                            "bootstrap_resamples": cfg.bootstrap_resamples, "by_recogniser": {}}
     sets = {"all": syn, **({n: m for n, m in families.items()} if separate else {})}
+    steady = steady_label(frame)
+    drawn_count = int(round(cfg.synthetic_per_real * train.sum()))
+    out["augmentation"] = {
+        "protocol": (f"per seed, {cfg.synthetic_per_real:g} synthetic gait(s) per labelled real train gait, drawn "
+                     "without replacement from the synthetic gaits whose dominant emotion is the same in every frame"),
+        "synthetic_per_real": cfg.synthetic_per_real,
+        "eligible": {n: int((m & steady).sum()) for n, m in sets.items()},
+        "drawn": {n: min(drawn_count, int((m & steady).sum())) for n, m in sets.items()},
+        "also_all_synthetic": cfg.augment_with_all}
     held = inputs.select(test)
     r_args = (cfg.bootstrap_resamples,)
     for kind in RECOGNISERS:
@@ -391,15 +436,21 @@ def recognisability(frame: pd.DataFrame, names: Sequence[str], cfg: AuditConfig 
         predicted: dict[str, list[np.ndarray]] = {"real_held_out": []}
         on_synthetic = {n: [] for n, m in sets.items() if m.any()}
         augmented = {n: [] for n in on_synthetic}
+        augmented_all = {n: [] for n in on_synthetic}
         for seed in seeds:
             started = time.perf_counter()
             recogniser = fit_recogniser(kind, inputs.select(train), label[train], cfg.recognisers, seed)
             predicted["real_held_out"].append(recogniser.predict(held))
             for name in on_synthetic:
                 on_synthetic[name].append(recogniser.predict(inputs.select(sets[name])))
-                both = train | sets[name]
+                both = train.copy()
+                both[augmentation_draw(np.flatnonzero(sets[name] & steady), drawn_count, seed)] = True
                 again = fit_recogniser(kind, inputs.select(both), label[both], cfg.recognisers, seed)
                 augmented[name].append(again.predict(held))
+                if cfg.augment_with_all:
+                    both = train | sets[name]
+                    again = fit_recogniser(kind, inputs.select(both), label[both], cfg.recognisers, seed)
+                    augmented_all[name].append(again.predict(held))
             if progress:
                 print(f"audit: {kind} seed {seed}: {time.perf_counter() - started:.1f} s", flush=True)
 
@@ -416,6 +467,11 @@ def recognisability(frame: pd.DataFrame, names: Sequence[str], cfg: AuditConfig 
             e["augmentation_delta"], e["augmentation_delta_ci95"] = _delta(
                 e["augmented_real_held_out"], entry["real_held_out"], groups[test], label[test],
                 predicted["real_held_out"], augmented[name], k, *r_args)
+            if augmented_all[name]:
+                e["augmented_all_real_held_out"] = summary(test, augmented_all[name])
+                e["augmentation_all_delta"], e["augmentation_all_delta_ci95"] = _delta(
+                    e["augmented_all_real_held_out"], entry["real_held_out"], groups[test], label[test],
+                    predicted["real_held_out"], augmented_all[name], k, *r_args)
             per_set[name] = e
         entry.update(per_set.get("all", {}))
         entry["families"] = {}

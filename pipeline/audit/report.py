@@ -156,7 +156,7 @@ def plot_feature_distances(distances: np.ndarray, feature_labels: Sequence[str],
 
 CONFUSION_PANELS = (("real_held_out", "trained on real, tested on real held-out"),
                     ("synthetic", "trained on real, tested on synthetic (intended emotion)"),
-                    ("augmented_real_held_out", "trained on real + synthetic, tested on real held-out"))
+                    ("augmented_real_held_out", "trained on real + drawn synthetic, tested on real held-out"))
 
 
 def plot_confusions(recognition: dict[str, Any], names: Sequence[str], path: Path) -> Path:
@@ -288,7 +288,7 @@ def verdict_lines(recognition: dict[str, Any]) -> list[tuple[str, str]]:
                                        f"balanced accuracy {', '.join(parts)} (chance {percent(chance)})")]
     lines = []
     for name in family_names:
-        gaits, reads, changes = None, [], []
+        gaits, reads, changes, changes_all = None, [], [], []
         for entry in recognisers.values():
             family = entry["families"].get(name, {})
             if "synthetic" not in family:
@@ -298,13 +298,16 @@ def verdict_lines(recognition: dict[str, Any]) -> list[tuple[str, str]]:
             reads.append(f"{entry['name']}: balanced accuracy {with_interval(syn, 'balanced_accuracy')} vs {held} "
                          f"{with_interval(real, 'balanced_accuracy')}, accuracy {percent(syn['accuracy_mean'])} "
                          f"(majority class {percent(syn['majority_baseline']['accuracy'])})")
-            if "augmentation_delta" in family:
-                changes.append(f"{entry['name']} {points(family['augmentation_delta']['macro_f1'])} "
-                               f"({interval(family['augmentation_delta_ci95']['macro_f1'], as_points=True)})")
+            for key, found in (("augmentation", changes), ("augmentation_all", changes_all)):
+                if f"{key}_delta" in family:
+                    found.append(f"{entry['name']} {points(family[f'{key}_delta']['macro_f1'])} "
+                                 f"({interval(family[f'{key}_delta_ci95']['macro_f1'], as_points=True)})")
         text = (f"{number(gaits)} synthetic gaits recognised as intended — " + "; ".join(reads)
                 + f"; chance {percent(chance)}")
         if changes:
             text += f". Augmentation, macro-F1 on {held}: " + ", ".join(changes)
+        if changes_all:
+            text += "; with every synthetic gait added at weight one: " + ", ".join(changes_all)
         lines.append((name, text))
     return lines
 
@@ -355,14 +358,19 @@ def _recognition_rows(recognition: dict[str, Any]) -> list[dict[str, str]]:
             if "synthetic" not in family:
                 continue
             rows.append(row(who, f"{name}: synthetic, intended emotion", train, family["synthetic"]))
-            if "augmented_real_held_out" in family:
-                rows.append(row(who, held, f"{train} + {number(family['gaits'])} {name}",
-                                family["augmented_real_held_out"]))
-                d, ci = family["augmentation_delta"], family["augmentation_delta_ci95"]
+            drawn = recognition.get("augmentation", {}).get("drawn", {})
+            drawn = drawn.get(name, drawn.get("all", family["gaits"]))
+            for key, added in (("augmentation", f"{number(drawn)} {name} (drawn per seed, steady labels)"),
+                               ("augmentation_all", f"all {number(family['gaits'])} {name}")):
+                result = family.get("augmented_real_held_out" if key == "augmentation" else "augmented_all_real_held_out")
+                if result is None:
+                    continue
+                rows.append(row(who, held, f"{train} + {added}", result))
+                d, ci = family[f"{key}_delta"], family[f"{key}_delta_ci95"]
                 change = {f"{label}: {spread}": f"{points(d[s])} ({interval(ci[s], as_points=True)})"
                           for s, label in (("accuracy", "accuracy"), ("balanced_accuracy", "balanced accuracy"),
                                            ("macro_f1", "macro-F1"))}
-                rows.append({"recogniser": who, "tested on": held, "trained on": f"change from adding {name}",
+                rows.append({"recogniser": who, "tested on": held, "trained on": f"change from adding {added}",
                              "gaits (clips)": "", **change, "majority class: accuracy · balanced · macro-F1": ""})
     return rows
 

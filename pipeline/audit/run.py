@@ -100,8 +100,8 @@ def audit_frame(frame: pd.DataFrame, meta: dict[str, Any], problems: list[dict[s
     if "by_recogniser" in recognition:
         figures.append((plot_confusions(recognition, names, out / "confusion.png"),
                         "The two emotion recognisers (rows; confusion matrices summed over seeds): recognisability "
-                        "of real held-out and synthetic gaits, and the same recogniser trained with the synthetic "
-                        "gaits added (augmentation)."))
+                        "of real held-out and synthetic gaits, and the same recogniser trained with synthetic "
+                        f"gaits added (augmentation: {recognition['augmentation']['protocol']})."))
     finite = inputs.finite()  # a gait with a NaN is listed among the problems and left out here
     train = real & (frame["split"] == "train").to_numpy() & finite
     held_out = real & frame["split"].isin(cfg.test_splits).to_numpy() & finite

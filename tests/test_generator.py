@@ -11,10 +11,10 @@ import torch
 
 from pipeline.evaluation.autoregressive import constant_velocity, pose_errors, straight_path, turn_path, zero_velocity
 from pipeline.io.files import write_bytes
-from pipeline.generators.autoregressive.rollout import (PlacementConfig, Seeds, generate, place_paths, stance_step,
-                                                      swinging_points)
+from pipeline.generators.autoregressive.rollout import (PlacementConfig, Seeds, generate, place_paths, smoothed_root,
+                                                      stance_step, swinging_points)
 from pipeline.generators.autoregressive.network import FOOT_JOINTS, EmotiveGaitNet, GeneratorConfig, LossWeights, generator_losses
-from pipeline.ops.geometry import distance_to_polyline
+from pipeline.ops.geometry import distance_to_polyline, odd_frames
 from pipeline.ops.quaternion import euler_to_quat, qangle, qnormalize, quat_to_euler
 from pipeline.generators.autoregressive.training import (
     GaitTensors,
@@ -257,6 +257,51 @@ def test_foot_lock_publishes_the_locked_legs_of_the_same_walk(gaits, offsets, sk
         assert torch.equal(getattr(locked, name), getattr(free, name)), name
     assert torch.equal(locked.versors[..., 0, :], free.versors[..., 0, :])
     assert torch.equal(locked.versors[..., 1:, :], locked.rotations[..., 1:, :])
+
+
+def test_odd_frames_are_the_nearest_odd_window():
+    assert [odd_frames(s, 30.0) for s in (0.0, 0.1, 0.2, 0.3, 0.4)] == [1, 3, 7, 9, 13]
+
+
+def test_root_smoothing_keeps_a_steady_walk_and_removes_the_stance_handover_jumps(annotated):
+    table, arrays = annotated
+    rows = np.flatnonzero(np.array(table.column("content").to_pylist()) == "walk")[:20]
+    real = torch.from_numpy(arrays["positions"][rows]).double()
+    prefix, generated = real[:, :18, 0, [0, 2]], real[:, 18:]
+    # a steady walk along a line (the prefix on the same line) is left where it is
+    line = torch.linspace(0.0, 2.0, 60, dtype=torch.float64)[None, :, None] * torch.tensor([0.6, 0.8])
+    steady = torch.zeros(1, 42, 21, 3, dtype=torch.float64)
+    steady[..., [0, 2]] = line[:, 18:, None]
+    assert torch.allclose(smoothed_root(steady, line[:, :18], 7), steady, atol=1e-12)
+    # a real walk whose root lurches 2 cm ahead in one frame at two stance handovers ...
+    jumps = generated.clone()
+    for frame in (12, 27):
+        jumps[:, frame:, :, 2] += 0.02
+    out = smoothed_root(jumps, prefix, 7)
+    speed = lambda p: torch.linalg.vector_norm(p[:, 1:, 0, [0, 2]] - p[:, :-1, 0, [0, 2]], dim=-1)  # noqa: E731
+    change = lambda p: (speed(p)[:, 1:] - speed(p)[:, :-1]).abs().mean()  # noqa: E731
+    assert float(change(out)) < 0.5 * float(change(jumps)) and float(change(out)) < 1.5 * float(change(generated))
+    # ... loses the lurches, keeps its course, its heights and its poses (every joint moves with the root)
+    moved = torch.linalg.vector_norm(out[..., 0, [0, 2]] - jumps[..., 0, [0, 2]], dim=-1).amax(1)  # per walk
+    assert float(moved.median()) < 0.02 and float(moved.max()) < 0.03  # real sway and lurches averaged: ~2 cm
+    assert torch.equal(out[..., 1], jumps[..., 1])
+    assert torch.allclose(out - out[..., :1, :], jumps - jumps[..., :1, :], atol=1e-12)
+    # and the first frame, averaged with the prefix, stays by the walk's own first frame (no lurch there yet)
+    assert float(torch.linalg.vector_norm(out[:, 0, 0, [0, 2]] - generated[:, 0, 0, [0, 2]], dim=-1).max()) < 0.02
+    assert torch.equal(smoothed_root(jumps, prefix, 1), jumps)
+
+
+def test_root_smoothing_in_generation_moves_only_the_ground_path(gaits, offsets, skeleton):
+    arrays, rows, g = gaits
+    model = _model(g)
+    seeds = Seeds.from_arrays(arrays, rows[:6], prefix=18)
+    paths, emotions = place_paths(straight_path(), seeds), torch.full((6, 40, 4), 0.25)
+    free = generate(model, seeds, paths, emotions, offsets, skeleton.parents, PlacementConfig())
+    smooth = generate(model, seeds, paths, emotions, offsets, skeleton.parents, PlacementConfig(root_smoothing_s=0.2))
+    assert torch.equal(smooth.positions, smoothed_root(free.positions, seeds.gaits.root_position[..., [0, 2]], 7))
+    assert torch.equal(smooth.rotations, free.rotations) and torch.equal(smooth.heading, free.heading)
+    path = torch.cat([seeds.gaits.root_position[:, -1:, [0, 2]], smooth.positions[..., 0, [0, 2]]], 1)
+    assert torch.allclose(smooth.advance, torch.linalg.vector_norm(path.diff(dim=1), dim=-1))
 
 
 def test_baselines(gaits, offsets, skeleton):

@@ -19,6 +19,7 @@ import torch
 
 from pipeline.ops.contacts import CONTACT_POINTS, ContactConfig, foot_contacts, foot_events, phase_rate, stepping_phase
 from pipeline.ops.features import AFFECTIVE_NAMES, MOVEMENT_NAMES, movement_features, pose_affective_features
+from pipeline.ops.geometry import odd_frames
 from pipeline.core.schema import ANNOTATIONS, units
 from pipeline.core.skeleton import Skeleton
 
@@ -31,7 +32,7 @@ class AnnotateConfig:
 
     @property
     def lowpass_frames(self) -> int:
-        return max(1, int(round(self.lowpass_seconds * self.fps)) // 2 * 2 + 1)
+        return odd_frames(self.lowpass_seconds, self.fps)
 
 
 def rebuild_clips(clip_ids: Sequence[str], starts: np.ndarray, positions: np.ndarray,

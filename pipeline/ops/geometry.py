@@ -246,6 +246,11 @@ def sliding_windows(x: torch.Tensor, frames: int) -> torch.Tensor:
     return padded.unfold(-1, frames, 1)
 
 
+def odd_frames(seconds: float, fps: float) -> int:
+    """An odd window length (>= 1 frame) nearest ``seconds`` at ``fps`` (a centred window needs one)."""
+    return max(1, int(round(seconds * fps)) // 2 * 2 + 1)
+
+
 def moving_average(x: torch.Tensor, frames: int) -> torch.Tensor:
     """Centred moving average along the last axis, odd window, edges replicated; (..., T) -> (..., T)."""
     if frames <= 1:

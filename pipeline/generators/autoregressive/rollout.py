@@ -44,6 +44,8 @@ from pipeline.ops.geometry import (
     closest_arc,
     direction_of,
     from_local_frame,
+    moving_average,
+    odd_frames,
     heading_angle,
     point_at_arc,
     to_local_frame,
@@ -74,6 +76,7 @@ class PlacementConfig:
     max_drift_deg: float = 15.0
     guidance: float = 1.0  # classifier-free guidance w of the condition (1: none; see ``generate``)
     expression_sharpness: float = 1.0  # the condition of an emotion m is m^p / sum(m^p) (1: m itself; ``generate``)
+    root_smoothing_s: float = 0.0  # centred moving average of the placed root's ground path (``smoothed_root``)
     foot_lock: bool = False  # hold stance feet still by leg IK after generation (ops.footlock)
     contacts: ContactConfig = ContactConfig()  # what a stance foot is (the annotation's rule)
 
@@ -187,6 +190,26 @@ def _guide(conditioned: dict[str, torch.Tensor], free: dict[str, torch.Tensor], 
     return out
 
 
+def smoothed_root(positions: torch.Tensor, prefix_ground: torch.Tensor, frames: int) -> torch.Tensor:
+    """Generated frames (N, S, J, 3) with the root's ground path (x, z) replaced by its centred moving average over
+    ``frames`` (odd); every joint moves with the root, heights are kept. Left of the first frame the average reads
+    the seed's prefix path (N, P, 2) (the join stays continuous), right of the last the path mirrored through its
+    end point (its trend continues). The stance-foot placement carries the root by the lowest foot point, which
+    jumps when the stance passes from foot to foot; the average keeps the stride and removes those jumps (the
+    feet are then held by ``foot_lock``)."""
+    half = frames // 2
+    ground = positions[..., 0, [0, 2]]
+    if half == 0 or ground.shape[1] < 2:
+        return positions
+    tail = min(half, ground.shape[1] - 1)
+    mirrored = 2 * ground[:, -1:] - ground[:, -2 - torch.arange(tail)]
+    left = prefix_ground[:, -half:]
+    padded = torch.cat([left, ground, mirrored], 1).transpose(1, 2)  # (N, 2, P' + S + tail)
+    averaged = moving_average(padded, frames).transpose(1, 2)[:, left.shape[1]:left.shape[1] + ground.shape[1]]
+    shift = averaged - ground
+    return positions + torch.stack((shift[..., 0], torch.zeros_like(shift[..., 0]), shift[..., 1]), -1)[:, :, None]
+
+
 @torch.no_grad()
 def generate(model: EmotiveGaitNet, seeds: Seeds, paths: torch.Tensor, emotions: torch.Tensor,
              offsets: torch.Tensor, parents: Sequence[int], cfg: PlacementConfig = PlacementConfig()) -> Generated:
@@ -265,6 +288,11 @@ def generate(model: EmotiveGaitNet, seeds: Seeds, paths: torch.Tensor, emotions:
             pred = _guide(pred, free_pred, cfg.guidance)
         current = {k: v[:, 0] for k, v in pred.items()}
     stacked = {k: torch.stack(v, dim=1) for k, v in out.items()}
+    window = odd_frames(cfg.root_smoothing_s, cfg.fps)
+    if window > 1:
+        stacked["positions"] = smoothed_root(stacked["positions"], seed.root_position[..., [0, 2]], window)
+        path = torch.cat([seed.root_position[:, -1:, [0, 2]], stacked["positions"][..., 0, [0, 2]]], 1)
+        stacked["advance"] = torch.linalg.vector_norm(path.diff(dim=1), dim=-1)
     if cfg.foot_lock:  # the network's own inputs were its unlocked frames; only what is published changes
         stacked["rotations"], stacked["positions"] = lock_feet(stacked["rotations"], stacked["positions"][..., 0, :],
                                                                offsets, parents, cfg.fps, cfg.contacts)

@@ -172,6 +172,29 @@ def quat_to_euler(q: torch.Tensor, order: str, locked_cos: float = 1e-9) -> torc
     return torch.stack((alpha, beta, gamma), dim=-1)
 
 
+def qlog(q: torch.Tensor, eps: float = 1e-9) -> torch.Tensor:
+    """Rotation vectors (..., 3) of unit quaternions (..., 4): axis times angle, the exponential map (Grassia).
+    The angle is 2·atan2(|v|, w) in [0, 2π], so q and -q (one rotation) give different vectors: keep a sequence
+    hemisphere-continuous (``qfix``) and the vectors are continuous; ``qexp`` returns q itself, not -q."""
+    v, w = q[..., 1:], q[..., :1]
+    s = torch.linalg.vector_norm(v, dim=-1, keepdim=True)
+    angle = 2.0 * torch.atan2(s, w)
+    small = s <= eps
+    scale = torch.where(small, 2.0 / w.abs().clamp_min(0.5), angle / torch.where(small, torch.ones_like(s), s))
+    # -1 (a turn by 2π about no particular axis) has no direction in v: any axis will do, +x here
+    full_turn = small & (w < 0)
+    return torch.where(full_turn, torch.cat([angle, torch.zeros_like(v[..., :2])], -1), v * scale)
+
+
+def qexp(r: torch.Tensor, eps: float = 1e-9) -> torch.Tensor:
+    """Unit quaternions (..., 4) of rotation vectors (..., 3) (the inverse of ``qlog``)."""
+    angle = torch.linalg.vector_norm(r, dim=-1, keepdim=True)
+    half = 0.5 * angle
+    scale = torch.where(angle > eps, torch.sin(half) / torch.where(angle > eps, angle, torch.ones_like(angle)),
+                        0.5 - angle * angle / 48.0)
+    return torch.cat([torch.cos(half), r * scale], dim=-1)
+
+
 def yaw(angle: torch.Tensor) -> torch.Tensor:
     """Rotations about +Y by ``angle`` (...) radians -> (..., 4); yaw(α) turns +Z towards (sin α, 0, cos α)."""
     half = 0.5 * angle

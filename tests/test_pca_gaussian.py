@@ -125,12 +125,104 @@ def test_seeded_sampling_is_deterministic_and_keeps_adjacent_cycles_within_the_r
     c = sample_cycles(chain, np.random.default_rng(4), redraws=5)
     assert all(np.array_equal(x, y) for x, y in zip(a[:2], b[:2])) and a[2] == b[2]
     assert not np.array_equal(a[0], c[0])
-    scores, durations, counts = a
-    for t in range(1, len(chain)):
-        assert (np.abs(scores[t] - scores[t - 1]) <= chain[t].max_change + 1e-12).all()
-        assert abs(durations[t] - durations[t - 1]) <= chain[t].duration_max_change + 1e-12
-    assert set(counts) == {"redrawn", "clamped"}
+    scores, durations, counts, last = a
+    for t in range(1, len(chain)):  # each cycle's deviation from its model's mean moves within the limit
+        step = (scores[t] - chain[t].mean) - (scores[t - 1] - chain[t - 1].mean)
+        assert (np.abs(step) <= chain[t].max_change + 1e-9).all()
+        step = (durations[t] - chain[t].duration_mean) - (durations[t - 1] - chain[t - 1].duration_mean)
+        assert abs(step) <= chain[t].duration_max_change + 1e-9
+        if chain[t] is chain[t - 1]:  # one style: the paper's rule on the scores themselves
+            assert (np.abs(scores[t] - scores[t - 1]) <= chain[t].max_change + 1e-9).all()
+    assert set(counts) == {"redrawn", "clamped"} and sum(counts.values()) > 0  # few cycles: the limit bites
+    assert np.allclose(last[0], scores[-1] - chain[-1].mean)
+    # a chain continued from the deviations of the cycle before keeps the limit across the join
+    first = sample_cycles(chain[:6], np.random.default_rng(3), redraws=5)
+    rest = sample_cycles(chain[6:], np.random.default_rng(5), redraws=5, previous=first[3])
+    assert (np.abs((rest[0][0] - chain[6].mean) - first[3][0]) <= chain[6].max_change + 1e-9).all()
     # a chain of one model draws around that model's mean
-    many, _, _ = sample_cycles([models[3]] * 400, np.random.default_rng(0), redraws=5)
+    many = sample_cycles([models[3]] * 400, np.random.default_rng(0), redraws=5)[0]
     assert np.all(np.abs(many.mean(0) - models[3].mean) < 0.5 * models[3].std + 1e-9)
     assert math.isfinite(float(many.sum()))
+
+
+# ------------------------------------------------------------------------------------------------- synthesis
+
+@pytest.fixture(scope="module")
+def family(annotated_split, skeleton):
+    from pipeline.generators.pca_gaussian.family import PCAGaussianFamily, fit, model_digest
+    from stages.configs import placement_config
+
+    table, arrays, _, _ = annotated_split
+    params = load_params()
+    f = fit(table, arrays, skeleton, annotate=annotate_config(params))
+    placement = placement_config(params)
+    return PCAGaussianFamily(f.model, model_digest(f.model), skeleton, placement), f
+
+
+def _rows(n: int, seed: int = 0) -> list[dict]:
+    return [{"plan_seed": seed + i, "gait_id": f"pca-{i}"} for i in range(n)]
+
+
+def test_fit_reports_what_it_was_fitted_on(family):
+    fam, f = family
+    assert f.components == f.basis.components_for(0.90) and f.model.components.shape[0] == f.components
+    assert 0.0 < f.model.foot_floor_m < 0.05  # the heel/toe joints' height over the floor in stance: cm
+    assert len(fam.model_sha256) == 64
+
+
+def test_walks_are_seeded_shaped_and_follow_their_path(family):
+    from pipeline.evaluation.autoregressive import straight_path, turn_path
+    from pipeline.ops.geometry import distance_to_polyline
+
+    fam, _ = family
+    emotions = torch.tensor([1.0, 0.0, 0.0, 0.0]).expand(4, 60, 4)
+    for path in (straight_path(), turn_path()):
+        paths = path[None].expand(4, *path.shape).float()
+        a = fam.generate(_rows(4), paths, emotions)
+        b = fam.generate(_rows(4), paths, emotions)
+        assert torch.equal(a.positions, b.positions) and torch.equal(a.rotations, b.rotations)
+        assert a.positions.shape == (4, 60, 21, 3) and a.context_positions.shape == (4, 18, 21, 3)
+        assert float(a.conditioned_phase.min()) >= 0 and float(a.conditioned_phase.max()) < 2 * math.pi
+        root = a.positions[..., 0, [0, 2]]
+        walked = torch.linalg.vector_norm(root[:, -1] - root[:, 0], dim=-1)
+        assert float(walked.min()) > 1.0  # two seconds of walking
+        off = torch.stack([distance_to_polyline(root[i], paths[i]) for i in range(4)])
+        assert float(off.max()) < 0.35, float(off.max())
+        assert torch.linalg.vector_norm(a.context_positions[:, 0, 0, [0, 2]], dim=-1).max() < 0.1  # starts at the start
+    c = fam.generate(_rows(4, seed=100), paths, emotions)
+    assert not torch.equal(c.positions, a.positions)
+
+
+def test_cycles_join_without_jumps_and_feet_stay_planted(family, annotated_split):
+    from pipeline.evaluation.autoregressive import skating_speed, straight_path
+    from pipeline.ops.quaternion import qangle
+    from stages.configs import contact_config
+
+    fam, _ = family
+    emotions = torch.eye(4).repeat_interleave(4, 0)[:, None].expand(16, 60, 4)
+    out = fam.generate(_rows(16), straight_path()[None].expand(16, -1, -1).float(), emotions)
+    _, arrays, split, _ = annotated_split
+    content = np.array(annotated_split[0].column("content").to_pylist())
+    walks = (split == "train") & (content == "walk")
+    real = torch.from_numpy(arrays["positions"][walks][:200])
+
+    def fastest(rotations: torch.Tensor) -> float:  # p99 over frames of the fastest joint's turn, deg per frame
+        change = torch.rad2deg(qangle(rotations[:, 1:, 1:], rotations[:, :-1, 1:])).amax(-1)
+        return float(torch.quantile(change.flatten().double(), 0.99))
+    # cycle boundaries are cross-faded: no frame turns a joint much faster than real walks do
+    assert fastest(out.rotations) < 1.5 * fastest(torch.from_numpy(arrays["rotations"][walks][:200]))
+    synthetic, _ = skating_speed(out.positions, 30.0, contact_config(load_params()))
+    reference, _ = skating_speed(real, 30.0, contact_config(load_params()))
+    assert synthetic <= 1.2 * reference
+
+
+def test_a_transition_changes_the_walk_cycle_by_cycle(family):
+    from pipeline.evaluation.autoregressive import straight_path
+
+    fam, _ = family
+    blend = torch.linspace(0, 1, 60)[:, None]
+    happy_to_sad = (1 - blend) * torch.tensor([1.0, 0, 0, 0]) + blend * torch.tensor([0, 1.0, 0, 0])
+    out = fam.generate(_rows(8), straight_path()[None].expand(8, -1, -1).float(), happy_to_sad.expand(8, 60, 4))
+    rate = torch.diff(torch.from_numpy(np.unwrap(out.conditioned_phase.numpy(), axis=1)), dim=1)
+    # sad cycles last longer (the models' durations): the stepping phase slows from the first to the last frames
+    assert float(rate[:, -15:].mean()) < 0.85 * float(rate[:, :15].mean())

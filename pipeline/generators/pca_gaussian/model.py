@@ -12,8 +12,11 @@
   adjacent pairs.
 * **Blending** a point m of the emotion simplex: means, variances and largest changes are the m-weighted sums of
   the four emotions' (so a vertex is that emotion's model, and a mixture's spread is that of a mixture of walks).
-* **Sampling** (§7.1): cycle after cycle, scores mean + std · N(0, 1); a score that moves farther from the
-  previous cycle's than the largest change is redrawn (``redraws`` times) and then clamped to it; both counted.
+* **Sampling** (§7.1): cycle after cycle, scores mean + std · N(0, 1); a score whose deviation from its model's
+  mean moves farther from the previous cycle's deviation than the largest change is redrawn (``redraws`` times)
+  and then clamped to it; both counted. For one style this is the paper's rule; measured on deviations, a
+  transition's means can move with the emotion (on the scores themselves, the change limit of a consistent style
+  held a happy-to-sad transition's cycle duration within 2 frames of happy's over 2 s).
 """
 
 from __future__ import annotations
@@ -152,37 +155,43 @@ def blend(models: list[StyleModel], weights: np.ndarray) -> StyleModel:
 
 def _draw(mean: np.ndarray, std: np.ndarray, previous: np.ndarray | None, limit: np.ndarray, redraws: int,
           rng: np.random.Generator, counts: dict[str, int]) -> np.ndarray:
+    """A draw of mean + std N(0, 1) whose deviation from the mean moves at most ``limit`` from the previous cycle's
+    deviation (``previous``, None for a first cycle): redrawn, then clamped."""
     value = mean + std * rng.standard_normal(mean.shape)
     if previous is None:
         return value
     for _ in range(redraws):
-        far = np.abs(value - previous) > limit
+        far = np.abs(value - mean - previous) > limit
         if not far.any():
             return value
         counts["redrawn"] += int(far.sum())
         value = np.where(far, mean + std * rng.standard_normal(mean.shape), value)
-    far = np.abs(value - previous) > limit
+    far = np.abs(value - mean - previous) > limit
     counts["clamped"] += int(far.sum())
-    return np.where(far, previous + np.clip(value - previous, -limit, limit), value)
+    return np.where(far, mean + previous + np.clip(value - mean - previous, -limit, limit), value)
 
 
 def sample_cycles(models: list[StyleModel], rng: np.random.Generator, redraws: int,
-                  previous: tuple[np.ndarray, float] | None = None) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
+                  previous: tuple[np.ndarray, float] | None = None
+                  ) -> tuple[np.ndarray, np.ndarray, dict[str, int], tuple[np.ndarray, float]]:
     """One cycle per model in ``models`` (a cycle's model may change from cycle to cycle, as in a transition):
-    scores (n, K) and durations (n,) in frames, each within its model's largest change of the cycle before
-    (``previous``: the scores and duration of a cycle before the first, or None). Counts of redrawn and clamped
-    values. Deterministic for a seeded ``rng``."""
+    scores (n, K) and durations (n,) in frames. Each cycle's deviation from its own model's mean stays within the
+    model's largest adjacent change of the cycle before's deviation (``previous``: the deviations of a cycle before
+    the first, or None), so for one style this is the paper's rule on the scores themselves, and in a transition
+    the means move with the emotion while the cycle-to-cycle jitter stays as bounded as in the real walks. Returns
+    the counts of redrawn and clamped values and the last cycle's deviations (to continue a chain). Deterministic
+    for a seeded ``rng``."""
     counts = {"redrawn": 0, "clamped": 0}
     scores, durations = [], []
-    z_prev, d_prev = (None, None) if previous is None else (np.asarray(previous[0]), np.array([previous[1]]))
+    z_dev, d_dev = (None, None) if previous is None else (np.asarray(previous[0]), np.array([previous[1]]))
     for m in models:
-        z = _draw(m.mean, m.std, z_prev, m.max_change, redraws, rng, counts)
-        d = _draw(np.array([m.duration_mean]), np.array([m.duration_std]), d_prev,
+        z = _draw(m.mean, m.std, z_dev, m.max_change, redraws, rng, counts)
+        d = _draw(np.array([m.duration_mean]), np.array([m.duration_std]), d_dev,
                   np.array([m.duration_max_change]), redraws, rng, counts)
         scores.append(z)
         durations.append(float(d[0]))
-        z_prev, d_prev = z, d
-    return np.array(scores), np.array(durations), counts
+        z_dev, d_dev = z - m.mean, d - m.duration_mean
+    return np.array(scores), np.array(durations), counts, (z_dev, float(d_dev[0]))
 
 
 def reconstruction_errors(x: np.ndarray, basis: PCABasis, k: int, offsets: np.ndarray, parents: list[int],

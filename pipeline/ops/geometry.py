@@ -226,6 +226,17 @@ def wrap_angle_atan2(a: torch.Tensor) -> torch.Tensor:
     return torch.atan2(torch.sin(a), torch.cos(a))
 
 
+def pursue(travel: torch.Tensor, ground: torch.Tensor, paths: torch.Tensor, cumulative: torch.Tensor,
+           lookahead_m: float, max_turn: float, offset: torch.Tensor | float = 0.0) -> torch.Tensor:
+    """Pure pursuit: directions of travel (N,) turned towards the point ``lookahead_m`` ahead on paths (N, K, 2)
+    (arc lengths ``cumulative``) of the one closest to ground points (N, 2), by at most ``max_turn`` rad; ``offset``
+    (N,) is subtracted from the wanted direction (a body whose steps run at that angle to its travel)."""
+    arc = closest_arc(ground, paths, cumulative)
+    target = point_at_arc(paths, cumulative, arc + lookahead_m)
+    wanted = direction_of(target[:, 0] - ground[:, 0], target[:, 1] - ground[:, 1])
+    return travel + wrap_angle(wanted - offset - travel).clamp(-max_turn, max_turn)
+
+
 # ------------------------------------------------------------------------------------------------------------ axes
 
 

@@ -41,16 +41,14 @@ import torch
 from pipeline.generators.autoregressive.network import FOOT_JOINTS, EmotiveGaitNet, condition_vectors, sharpened
 from pipeline.ops.geometry import (
     arc_lengths,
-    closest_arc,
     direction_of,
     from_local_frame,
+    heading_angle,
     moving_average,
     odd_frames,
-    heading_angle,
-    point_at_arc,
+    pursue,
     to_local_frame,
     unit_direction,
-    wrap_angle,
     wrap_phase,
 )
 from pipeline.ops.contacts import ContactConfig
@@ -248,10 +246,7 @@ def generate(model: EmotiveGaitNet, seeds: Seeds, paths: torch.Tensor, emotions:
     max_drift = math.radians(cfg.max_drift_deg)
     for t in range(steps):
         speed = current["s"].clamp(0.0, cfg.max_speed_m_s / cfg.fps)
-        arc = closest_arc(ground, paths, cumulative)
-        target = point_at_arc(paths, cumulative, arc + cfg.lookahead_m)
-        wanted = direction_of(target[:, 0] - ground[:, 0], target[:, 1] - ground[:, 1])
-        travel = travel + wrap_angle(wanted - drift - travel).clamp(-max_turn, max_turn)
+        travel = pursue(travel, ground, paths, cumulative, cfg.lookahead_m, max_turn, drift)
         along = unit_direction(travel)
         delta = current["delta"].clamp(0.0, math.pi)
         root_rotation = qmul(yaw(travel), current["q"][:, 0])

@@ -40,12 +40,10 @@ from pipeline.generators.pca_gaussian.model import StyleModel, blend, sample_cyc
 from pipeline.ops.footlock import lock_feet
 from pipeline.ops.geometry import (
     arc_lengths,
-    closest_arc,
     direction_of,
     heading_angle,
     odd_frames,
-    point_at_arc,
-    wrap_angle,
+    pursue,
     wrap_phase,
 )
 from pipeline.ops.kinematics import canonical_positions
@@ -178,10 +176,7 @@ def walk(model: CycleModel, rows: Sequence[dict[str, Any]], paths: torch.Tensor,
     rotations, roots = [], []
     previous_feet = None
     for t in range(line):
-        arc = closest_arc(ground, paths, cumulative)
-        target = point_at_arc(paths, cumulative, arc + placement.lookahead_m)
-        wanted = direction_of(target[:, 0] - ground[:, 0], target[:, 1] - ground[:, 1])
-        travel = travel + wrap_angle(wanted - travel).clamp(-max_turn, max_turn)
+        travel = pursue(travel, ground, paths, cumulative, placement.lookahead_m, max_turn)
         root_rotation = qmul(yaw(travel), local[:, t, 0])
         pose = torch.cat([root_rotation[:, None], local[:, t, 1:]], 1)
         relative = canonical_positions(torch.zeros(n, 3), pose, offsets, parents)[:, foot_joints]

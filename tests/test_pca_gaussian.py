@@ -226,3 +226,25 @@ def test_a_transition_changes_the_walk_cycle_by_cycle(family):
     rate = torch.diff(torch.from_numpy(np.unwrap(out.conditioned_phase.numpy(), axis=1)), dim=1)
     # sad cycles last longer (the models' durations): the stepping phase slows from the first to the last frames
     assert float(rate[:, -15:].mean()) < 0.85 * float(rate[:, :15].mean())
+
+
+def test_the_model_file_is_deterministic_and_walks_as_the_fit_does(family, tmp_path, skeleton):
+    from pipeline.evaluation.autoregressive import straight_path
+    from pipeline.generators.pca_gaussian.family import PCAGaussianFamily, load_model, model_bytes
+    from pipeline.io.files import write_bytes
+
+    fam, f = family
+    data = model_bytes(f, CycleConfig(), ModelConfig())
+    assert data == model_bytes(f, CycleConfig(), ModelConfig())
+    sha = write_bytes(data, tmp_path / "model.pt")
+    model, extra, digest = load_model(tmp_path / "model.pt")
+    assert digest == sha and extra["format"] == "emogait-pca-gaussian/1"
+    assert len(extra["cycle_ids"]) == len(f.cycles) and extra["model_cycles"] == [m.cycles for m in f.model.models]
+    loaded = PCAGaussianFamily(model, digest, skeleton, fam.placement)
+    paths = straight_path()[None].expand(4, -1, -1).float()
+    emotions = torch.eye(4)[:, None].expand(4, 60, 4)
+    assert torch.equal(loaded.generate(_rows(4), paths, emotions).positions,
+                       fam.generate(_rows(4), paths, emotions).positions)
+    (tmp_path / "other.pt").write_bytes(b"not a model")
+    with pytest.raises(Exception):
+        load_model(tmp_path / "other.pt")

@@ -80,3 +80,53 @@ def model_digest(model: CycleModel) -> str:
                                                 for m in model.models]):
         h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
     return h.hexdigest()
+
+
+FORMAT = "emogait-pca-gaussian/1"
+
+
+def model_bytes(f: Fit, cycle_cfg: CycleConfig, cfg: ModelConfig) -> bytes:
+    """The fitted model as bytes (torch's zip format, deterministic for the same numbers): the basis mean and kept
+    components, the four emotion models, the settings, and the cycles it was fitted on (clip @ first frame, with
+    their dominant emotion index or -1): the family's lineage."""
+    import dataclasses
+    import io
+
+    from pipeline.core.emotions import EMOTIONS
+
+    models = f.model.models
+    blob = {"format": FORMAT, "cycles_config": dataclasses.asdict(cycle_cfg), "model_config": dataclasses.asdict(cfg),
+            "emotions": list(EMOTIONS), "mean": torch.from_numpy(f.model.mean),
+            "components": torch.from_numpy(np.ascontiguousarray(f.model.components)),
+            "score_mean": torch.from_numpy(np.stack([m.mean for m in models])),
+            "score_std": torch.from_numpy(np.stack([m.std for m in models])),
+            "score_max_change": torch.from_numpy(np.stack([m.max_change for m in models])),
+            "duration": torch.tensor([[m.duration_mean, m.duration_std, m.duration_max_change] for m in models],
+                                     dtype=torch.float64),
+            "model_cycles": [int(m.cycles) for m in models], "frames": int(f.model.frames),
+            "joints": int(f.model.joints), "foot_floor_m": float(f.model.foot_floor_m),
+            "cycle_ids": [f"{c}@{int(s)}" for c, s in zip(f.cycles.clip_id, f.cycles.start_frame)],
+            "cycle_dominant": [int(d) for d in f.cycles.dominant()]}
+    buffer = io.BytesIO()
+    torch.save(blob, buffer)
+    return buffer.getvalue()
+
+
+def load_model(path) -> tuple[CycleModel, dict[str, Any], str]:
+    """(the synthesis model, the file's other fields, sha256 of the file) of ``model_bytes`` written to ``path``."""
+    import io
+    from pathlib import Path
+
+    from pipeline.generators.pca_gaussian.model import StyleModel
+
+    data = Path(path).read_bytes()
+    blob = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
+    if blob.get("format") != FORMAT:
+        raise ValueError(f"{path}: expected a {FORMAT} model, found {blob.get('format')!r}")
+    models = [StyleModel(mean=blob["score_mean"][k].numpy(), std=blob["score_std"][k].numpy(),
+                         max_change=blob["score_max_change"][k].numpy(), duration_mean=float(blob["duration"][k, 0]),
+                         duration_std=float(blob["duration"][k, 1]), duration_max_change=float(blob["duration"][k, 2]),
+                         cycles=int(blob["model_cycles"][k])) for k in range(len(blob["emotions"]))]
+    model = CycleModel(mean=blob["mean"].numpy(), components=blob["components"].numpy(), models=models,
+                       frames=int(blob["frames"]), joints=int(blob["joints"]), foot_floor_m=float(blob["foot_floor_m"]))
+    return model, {k: v for k, v in blob.items() if k not in ("mean", "components")}, hashlib.sha256(data).hexdigest()

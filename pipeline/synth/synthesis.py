@@ -177,9 +177,9 @@ def plan_rows(plan: Sequence[dict[str, Any]], recipes: Sequence[str]) -> list[tu
 def synthesis_report(work: SynthesisPlan, synthetic: dict[str, np.ndarray], cfg: SynthesisConfig, fps: float,
                      model_sha256: str, phase_from_condition: list[str]) -> dict[str, Any]:
     """Counts, the emotion and trajectory novelty tests (trajectories vs the training clips' root paths), how
-    close the pieces single gaits walk come to training paths, copied real frames. No timing: the report is a
-    DVC output whose md5 reaches the published provenance, so it holds only what the inputs determine (the stage
-    prints its time; benchmarks/generate.py measures it)."""
+    close the pieces single gaits walk come to training paths, copied real frames. No timing: the report holds
+    only what the inputs determine, so a rerun gives the same bytes (the stage prints its time;
+    benchmarks/generate.py measures it)."""
     table, arrays, plan, trajectories = work.table, work.arrays, work.plan, work.trajectories
     split = np.array(table.column("split").to_pylist())
     clip_ids = table.column("clip_id").to_pylist()

@@ -116,7 +116,7 @@ def fit_variants(in_gaits: Path, variants: Variants, skeleton: Skeleton, workers
 
 def variant_summary(result: dict[str, Any]) -> dict[str, Any]:
     """A variant's report entry: epochs, the critic's figures, final teacher forcing and its final train/val losses.
-    No seconds: the report's md5 reaches the published provenance, so it holds only what the inputs determine."""
+    No seconds: the report holds only what the inputs determine, so a rerun gives the same bytes."""
     final = result["history"][-1]
     return {"epochs": final["epoch"], "critic": result.get("critic"),
             "final_teacher_forcing": final["teacher_forcing"],

@@ -36,9 +36,7 @@ from pipeline.generators.autoregressive.training import load_checkpoint  # noqa:
 from pipeline.io.files import write_json  # noqa: E402
 from pipeline.io.gait_table import read_gaits  # noqa: E402
 from pipeline.ops.geometry import odd_frames  # noqa: E402
-from pipeline.synth.plan import frame_emotions  # noqa: E402
-from pipeline.synth.synthesis import SynthesisConfig, SynthesisPlan  # noqa: E402
-from pipeline.synth.trajectories import piece_from  # noqa: E402
+from pipeline.synth.synthesis import SynthesisConfig, SynthesisPlan, row_inputs  # noqa: E402
 from stages.common import SKELETON, load_params  # noqa: E402
 from stages.configs import contact_config, placement_config  # noqa: E402
 
@@ -75,11 +73,8 @@ def main() -> dict:
     offsets = torch.from_numpy(skeleton.offsets).to(torch.float32)
     model, _, sha = load_checkpoint(MODEL)
     rows = work.plan[:: args.every]
-    by_id = {t.id: t for t in work.trajectories}
-    shapes = torch.from_numpy(np.stack([piece_from(by_id[r["trajectory_id"]].points, r["start_m"], cfg.path_ahead_m)
-                                        for r in rows]).astype(np.float32))
-    per_frame = torch.from_numpy(np.stack([frame_emotions(r["recipe"], work.emotions, cfg.frames)
-                                           for r in rows]).astype(np.float32))
+    shapes, per_frame = row_inputs(rows, work.emotions, {t.id: t for t in work.trajectories}, cfg)
+    per_frame = torch.from_numpy(per_frame.astype(np.float32))
     walks = np.array([work.row_of[g] for g in work.seed_pools[-1]])
     real = torch.from_numpy(work.arrays["positions"][walks].astype(np.float32))
     contacts = contact_config(params)

@@ -149,14 +149,16 @@ def test_seeded_sampling_is_deterministic_and_keeps_adjacent_cycles_within_the_r
 
 @pytest.fixture(scope="module")
 def family(annotated_split, skeleton):
-    from pipeline.generators.pca_gaussian.family import PCAGaussianFamily, fit, model_digest
+    from pipeline.generators.pca_gaussian.family import PCAGaussianFamily, fit, model_bytes
+    from pipeline.io.files import sha256_bytes
     from stages.configs import placement_config
 
     table, arrays, _, _ = annotated_split
     params = load_params()
     f = fit(table, arrays, skeleton, annotate=annotate_config(params))
     placement = placement_config(params)
-    return PCAGaussianFamily(f.model, model_digest(f.model), skeleton, placement), f
+    return PCAGaussianFamily(f.model, sha256_bytes(model_bytes(f, CycleConfig(), ModelConfig())), skeleton,
+                             placement), f
 
 
 def _rows(n: int, seed: int = 0) -> list[dict]:
@@ -167,7 +169,7 @@ def test_fit_reports_what_it_was_fitted_on(family):
     fam, f = family
     assert f.components == f.basis.components_for(0.90) and f.model.components.shape[0] == f.components
     assert 0.0 < f.model.foot_floor_m < 0.05  # the heel/toe joints' height over the floor in stance: cm
-    assert len(fam.model_sha256) == 64
+    assert [m.cycles for m in f.model.models] == [int((f.cycles.dominant() == k).sum()) for k in range(4)]
 
 
 def test_walks_are_seeded_shaped_and_follow_their_path(family):

@@ -98,6 +98,15 @@ class SynthesisPlan:
         return {g: i for i, g in enumerate(self.table.column("gait_id").to_pylist())}
 
 
+def row_inputs(rows: Sequence[dict[str, Any]], emotions: np.ndarray, trajectories: dict[str, Trajectory],
+               cfg: SynthesisConfig) -> tuple[torch.Tensor, np.ndarray]:
+    """What a family generates plan rows from: each row's trajectory piece (N, K, 2) float32 in its own start
+    frame, and its per-frame emotions (N, frames, 4) float64."""
+    shapes = torch.from_numpy(np.stack([piece_from(trajectories[r["trajectory_id"]].points, r["start_m"],
+                                                   cfg.path_ahead_m) for r in rows]).astype(np.float32))
+    return shapes, np.stack([frame_emotions(r["recipe"], emotions, cfg.frames) for r in rows])
+
+
 def synthesize(family: GeneratorFamily, plan: Sequence[dict[str, Any]], emotions: np.ndarray,
                trajectories: dict[str, Trajectory], skeleton: Skeleton, annotate: AnnotateConfig,
                cfg: SynthesisConfig, progress: Callable[[int, int], None] | None = None) -> dict[str, np.ndarray]:
@@ -107,9 +116,7 @@ def synthesize(family: GeneratorFamily, plan: Sequence[dict[str, Any]], emotions
     parts: dict[str, list[np.ndarray]] = {}
     for first in range(0, len(plan), cfg.batch):
         rows = plan[first:first + cfg.batch]
-        shapes = torch.from_numpy(np.stack([piece_from(trajectories[r["trajectory_id"]].points, r["start_m"],
-                                                       cfg.path_ahead_m) for r in rows]).astype(np.float32))
-        per_frame = np.stack([frame_emotions(r["recipe"], emotions, cfg.frames) for r in rows])
+        shapes, per_frame = row_inputs(rows, emotions, trajectories, cfg)
         g = family.generate(rows, shapes, torch.from_numpy(per_frame.astype(np.float32)))
         batch = _annotate(g.positions.double(), g.rotations.double(),
                           None if g.context_positions is None else g.context_positions.double(),

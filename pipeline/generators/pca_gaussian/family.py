@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -20,6 +19,7 @@ from pipeline.generators.base import GeneratedMotion
 from pipeline.generators.pca_gaussian.cycles import CycleConfig, Cycles, cut_cycles
 from pipeline.generators.pca_gaussian.model import ModelConfig, PCABasis, balanced_rows, fit_basis, fit_style_models
 from pipeline.generators.pca_gaussian.synthesis import CycleModel, WalkSettings, walk
+from pipeline.io.files import sha256_bytes
 
 NAME = "pca_gaussian"
 
@@ -72,16 +72,6 @@ class PCAGaussianFamily:
         return motion
 
 
-def model_digest(model: CycleModel) -> str:
-    """sha256 of the model's numbers (until the fit stage writes the model file and its digest is the file's)."""
-    h = hashlib.sha256()
-    for a in (model.mean, model.components, *[np.concatenate([m.mean, m.std, m.max_change,
-                                                              [m.duration_mean, m.duration_std, m.duration_max_change]])
-                                                for m in model.models]):
-        h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
-    return h.hexdigest()
-
-
 FORMAT = "emogait-pca-gaussian/1"
 
 
@@ -129,4 +119,4 @@ def load_model(path) -> tuple[CycleModel, dict[str, Any], str]:
                          cycles=int(blob["model_cycles"][k])) for k in range(len(blob["emotions"]))]
     model = CycleModel(mean=blob["mean"].numpy(), components=blob["components"].numpy(), models=models,
                        frames=int(blob["frames"]), joints=int(blob["joints"]), foot_floor_m=float(blob["foot_floor_m"]))
-    return model, {k: v for k, v in blob.items() if k not in ("mean", "components")}, hashlib.sha256(data).hexdigest()
+    return model, {k: v for k, v in blob.items() if k not in ("mean", "components")}, sha256_bytes(data)

@@ -30,7 +30,7 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from pipeline.core.skeleton import load_skeleton  # noqa: E402
-from pipeline.evaluation.autoregressive import skating_speed  # noqa: E402
+from pipeline.ops.footlock import skating_speed  # noqa: E402
 from pipeline.generators.autoregressive.rollout import Seeds, generate, place_paths  # noqa: E402
 from pipeline.generators.autoregressive.training import load_checkpoint  # noqa: E402
 from pipeline.io.files import write_json  # noqa: E402

@@ -7,7 +7,8 @@ import torch
 
 from pipeline.ops.contacts import ContactConfig
 from pipeline.core.emotions import EMOTIONS, dominant_emotion
-from pipeline.evaluation.autoregressive import affect_summary, emotion_centroids, pose_errors, skating_speed
+from pipeline.evaluation.autoregressive import affect_summary, emotion_centroids, pose_errors
+from pipeline.ops.footlock import skating_speed
 from pipeline.generators.autoregressive.training import GaitTensors
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from pipeline.evaluation.autoregressive import skating_speed
+from pipeline.ops.footlock import skating_speed
 from pipeline.ops.contacts import ContactConfig, foot_contacts
 from pipeline.ops.footlock import FOOT_POINTS, LEGS, lock_feet, reach, stance_offsets
 from pipeline.ops.kinematics import canonical_kinematics

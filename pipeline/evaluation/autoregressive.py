@@ -18,8 +18,9 @@ import numpy as np
 import torch
 
 from pipeline.core.emotions import EMOTIONS
-from pipeline.ops.contacts import ContactConfig, foot_contacts
+from pipeline.ops.contacts import ContactConfig
 from pipeline.ops.features import affective_features
+from pipeline.ops.footlock import skating_speed
 from pipeline.ops.geometry import distance_to_polyline
 from pipeline.generators.autoregressive.rollout import (
     Generated,
@@ -29,7 +30,7 @@ from pipeline.generators.autoregressive.rollout import (
     place_paths,
     prefix_of,
 )
-from pipeline.generators.autoregressive.network import FOOT_JOINTS, EmotiveGaitNet, travel_frame_positions
+from pipeline.generators.autoregressive.network import EmotiveGaitNet, travel_frame_positions
 from pipeline.ops.quaternion import qangle, qconj, qmul, qnormalize
 from pipeline.generators.autoregressive.training import GaitTensors
 
@@ -119,16 +120,6 @@ def turn_path(before_m: float = 2.5, angle_deg: float = 90.0, after_m: float = 4
     """Straight ahead, then a sharp turn to the left (+x is the body's left when facing +z)."""
     a = math.radians(angle_deg)
     return torch.tensor([[0.0, 0.0], [0.0, before_m], [after_m * math.sin(a), before_m + after_m * math.cos(a)]])
-
-
-def skating_speed(positions: torch.Tensor, fps: float, cfg: ContactConfig) -> tuple[float, float]:
-    """Mean horizontal speed (m/s) of heel/toe points while in contact (None if no point is ever in contact), and
-    the contact fraction. positions: (N, T, 21, 3) world."""
-    points = positions[:, :, list(FOOT_JOINTS)].double()
-    contacts = foot_contacts(points, fps, cfg)  # (N, T, 4)
-    velocity = torch.gradient(points[..., [0, 2]], spacing=1.0 / fps, dim=1)[0]
-    speed = torch.linalg.vector_norm(velocity, dim=-1)
-    return float(speed[contacts].mean()) if bool(contacts.any()) else None, float(contacts.double().mean())
 
 
 @dataclass

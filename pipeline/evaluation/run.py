@@ -23,11 +23,11 @@ from pipeline.evaluation.autoregressive import (
     long_rollouts,
     one_hot_transition,
     rollout_figures,
-    skating_speed,
     table1,
     straight_path,
     transitions,
 )
+from pipeline.ops.footlock import skating_speed
 from pipeline.evaluation.controllability import (
     ControllabilityConfig,
     condition_sensitivity,

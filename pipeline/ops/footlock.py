@@ -114,3 +114,13 @@ def lock_feet(rotations: torch.Tensor, root_positions: torch.Tensor, offsets: to
         moved = (move.abs().amax(-1) > 0)[..., None, None]
         out = torch.where(moved, locked, out)
     return out, canonical_kinematics(root_positions, out, offsets, parents)[0]
+
+
+def skating_speed(positions: torch.Tensor, fps: float, cfg: ContactConfig) -> tuple[float, float]:
+    """Mean horizontal speed (m/s) of heel/toe points while in contact (None if no point is ever in contact), and
+    the contact fraction. positions: (N, T, 21, 3) world."""
+    points = positions[:, :, list(canonical_skeleton().foot_joints)].double()
+    contacts = foot_contacts(points, fps, cfg)  # (N, T, 4)
+    velocity = torch.gradient(points[..., [0, 2]], spacing=1.0 / fps, dim=1)[0]
+    speed = torch.linalg.vector_norm(velocity, dim=-1)
+    return float(speed[contacts].mean()) if bool(contacts.any()) else None, float(contacts.double().mean())

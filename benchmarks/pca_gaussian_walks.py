@@ -25,7 +25,7 @@ import torch  # noqa: E402
 from benchmarks.root_smoothing import root_motion  # noqa: E402
 from pipeline.core.emotions import EMOTIONS  # noqa: E402
 from pipeline.core.skeleton import load_skeleton  # noqa: E402
-from pipeline.evaluation.autoregressive import skating_speed  # noqa: E402
+from pipeline.ops.footlock import skating_speed  # noqa: E402
 from pipeline.generators.pca_gaussian.family import PCAGaussianFamily, load_model  # noqa: E402
 from pipeline.io.files import write_json  # noqa: E402
 from pipeline.io.gait_table import read_gaits  # noqa: E402
@@ -33,7 +33,7 @@ from pipeline.recognition import RECOGNISERS, RecogniserConfig, confusion, fit_r
 from pipeline.recognition.inputs import RecognitionInputs  # noqa: E402
 from pipeline.synth.synthesis import SynthesisConfig, SynthesisPlan, synthesize, walking_figures  # noqa: E402
 from stages.common import SKELETON, load_params  # noqa: E402
-from stages.configs import annotate_config, contact_config, placement_config  # noqa: E402
+from stages.configs import annotate_config, contact_config, placement_config, walk_settings  # noqa: E402
 
 OUT = REPO / "benchmarks" / "out" / "pca_gaussian_walks.json"
 GAITS = REPO / "data" / "split" / "gaits.parquet"
@@ -52,7 +52,7 @@ def main() -> dict:
     cfg = SynthesisConfig.from_dict(params["synthesize"], frames=int(params["ingest"]["window"]))
     fps = float(params["ingest"]["target_fps"])
     work = SynthesisPlan.prepare(table, arrays, cfg)
-    family = PCAGaussianFamily(model, sha, skeleton, placement_config(params))
+    family = PCAGaussianFamily(model, sha, skeleton, placement_config(params), walk_settings(params))
     trajectories = {t.id: t for t in work.trajectories}
     split = np.array(table.column("split").to_pylist())
     labelled = ~np.isnan(arrays["emotion"]).any(-1)

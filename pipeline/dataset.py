@@ -2,7 +2,8 @@
 stage uses for the files this module reads.
 
 A published directory holds
-    gaits.parquet, or shards gaits-*.parquet (read in name order)
+    gaits.parquet, or shards gaits-*.parquet (read in name order; the publish stage names each shard for the one
+        part it holds, ``gaits-<n>-<part>.parquet``: ``real`` or a generator family, and verify checks that)
         one row per gait; array columns are fixed_size_list<float32> (row-major) with their per-gait shapes,
         joint names, parents, emotion order and units in the schema metadata key ``emogait``
         (see ``pipeline.io.gait_table``); a null array row means "absent" (e.g. an unlabelled gait's emotion);
@@ -15,7 +16,9 @@ A published directory holds
     SHA256SUMS
         ``sha256sum`` lines "<hex>  <relative path>" for every other (non-hidden) file, sorted by path,
         so ``sha256sum -c SHA256SUMS`` checks a download;
-beside the Croissant JSON-LD, the dataset card and the PROV-JSON lineage, which the publish stage writes.
+beside the Croissant JSON-LD, the dataset card, the PROV-JSON lineage and generators.json (each generator family's
+entry and model lineage), which the publish stage writes. Where the schema metadata declares ``generators``, every
+synthetic gait names one of them in its ``generator`` column with that family's model sha256.
 
 This module knows the directory's files, not how gaits are made.
 """
@@ -275,7 +278,7 @@ def verify(directory: str | Path) -> list[str]:
     if table is None:
         return problems
     arrays, array_problems = _check_arrays(table, meta)
-    problems += array_problems + _check_ids(table)
+    problems += array_problems + _check_ids(table) + _check_generators(directory, table, meta)
     return problems + _check_hdf5(directory / HDF5_NAME, table, meta, arrays)
 
 
@@ -378,6 +381,42 @@ def _check_values(name: str, values: np.ndarray, valid: np.ndarray, meta: dict[s
         total = values[tuple(np.argwhere(off)[0])].sum(dtype=np.float64)
         problems.append(f"column {name!r}: {int(off.sum())} emotion rows do not sum to 1 within "
                         f"{EMOTION_TOLERANCE} (first: {_first(off, table)} sums to {total:.6f})")
+    return problems
+
+
+def _check_generators(directory: Path, table: pa.Table, meta: dict[str, Any]) -> list[str]:
+    """Where the metadata declares generator families: every synthetic gait names one of them, every family has
+    gaits carrying its model's sha256, and a shard named for a part (``gaits-<n>-<part>.parquet``) holds only
+    that part's gaits (``real``, or the family's)."""
+    generators = meta.get("generators")
+    if not generators or "generator" not in table.column_names:
+        return []
+    kind = np.array(table.column("kind").to_pylist(), dtype=object)
+    generator = np.array(table.column("generator").to_pylist(), dtype=object)
+    sha = np.array(table.column("checkpoint_sha256").to_pylist(), dtype=object) \
+        if "checkpoint_sha256" in table.column_names else None
+    problems = []
+    undeclared = sorted({str(g) for g in generator[kind == "synthetic"] if g not in generators})
+    if undeclared:
+        problems.append(f"column 'generator': synthetic gaits of {undeclared}; expected one of {sorted(generators)} "
+                        "(the metadata's 'generators')")
+    for name, entry in generators.items():
+        rows = generator == name
+        if not rows.any():
+            problems.append(f"generator {name!r}: declared in the metadata, but no gait has it")
+        elif sha is not None and (bad := int((sha[rows] != entry.get("model_sha256")).sum())):
+            problems.append(f"generator {name!r}: {bad} gaits with checkpoint_sha256 other than the declared "
+                            f"{entry.get('model_sha256')}")
+    for file in parquet_files(directory):
+        part = file.stem.split("-", 2)[2] if file.stem.count("-") >= 2 else None
+        if part is None:
+            continue
+        shard = pq.read_table(file, columns=["kind", "generator"])
+        kinds, gens = set(shard.column("kind").to_pylist()), set(shard.column("generator").to_pylist())
+        expected = ({"real"}, {None}) if part == "real" else ({"synthetic"}, {part})
+        if (kinds, gens) != expected:
+            problems.append(f"{file.name}: expected only {part} gaits, found kinds {sorted(map(str, kinds))} and "
+                            f"generators {sorted(map(str, gens))}")
     return problems
 
 

@@ -12,6 +12,7 @@ if TYPE_CHECKING:
     from pipeline.annotate.annotation import AnnotateConfig
     from pipeline.annotate.contact_validation import ValidationConfig
     from pipeline.generators.autoregressive.rollout import PlacementConfig
+    from pipeline.generators.pca_gaussian.synthesis import WalkSettings
     from pipeline.ingest.run import IngestConfig
     from pipeline.ops.contacts import ContactConfig
 
@@ -34,6 +35,12 @@ def placement_config(params: dict[str, Any]) -> PlacementConfig:
 
     return PlacementConfig.from_dict(params.get("generate") or {}, params["ingest"]["target_fps"],
                                      contact_config(params))
+
+
+def walk_settings(params: dict[str, Any]) -> WalkSettings:
+    from pipeline.generators.pca_gaussian.synthesis import WalkSettings
+
+    return WalkSettings.from_dict((params.get("pca_gaussian") or {}).get("synthesis"))
 
 
 def ingest_config(params: dict[str, Any]) -> IngestConfig:

@@ -37,6 +37,7 @@ from pipeline.ops.features import AFFECTIVE_FEATURES, AFFECTIVE_NAMES, MOVEMENT_
 from pipeline.dataset import write_sha256sums
 from pipeline.io.gait_table import array_column, column_array
 from pipeline.recognition import RECOGNISERS, RecogniserConfig, majority_baseline, scores
+from pipeline.publish.table import generator_entry
 from stages.audit import main as audit
 from tests.test_croissant_provenance import _publish, _published_table
 
@@ -86,6 +87,34 @@ def test_every_planted_defect_is_named_and_the_page_shows_every_figure(defective
     assert planted["duplicate"] in page
     assert json.loads((tmp_path / "audit" / "metrics.json").read_text())["gaits"] == metrics["gaits"]
     assert metrics["memorisation"]["left_out_not_finite"] == 1  # the gait with a NaN position: listed, not measured
+
+
+def test_each_generator_family_needs_its_own_lineage(annotated):
+    """With the metadata's ``generators``: a family without seeds needs no ``seed_gait_id``, a seeded family's
+    gait without one is a problem, a gait of an undeclared family or with another model's sha256 is one too."""
+    table, _ = _published_table(annotated[0])
+    frame = pd.DataFrame({c: table.column(c).to_pylist() for c in ("gait_id", "kind", "checkpoint_sha256",
+                                                                   "seed_gait_id", "trajectory_id", "emotion_recipe",
+                                                                   "plan_seed", "source_file", "source_sha256",
+                                                                   "t_start", "t_end")})
+    frame["contacts"] = [np.zeros((60, 4))] * len(frame)
+    frame["phase"] = [np.zeros(60)] * len(frame)
+    synthetic = np.flatnonzero(frame["kind"] == "synthetic")
+    frame["generator"] = None
+    frame.loc[synthetic, "generator"] = ["seeded", "seedless"]
+    frame.loc[synthetic, "seed_gait_id"] = None
+    sha = frame.loc[synthetic[0], "checkpoint_sha256"]
+    generators = {name: generator_entry(name, "test", sha, seeded) for name, seeded in (("seeded", True),
+                                                                                        ("seedless", False))}
+    found = {(p["gait_id"], p["check"]) for p in gait_problems(frame, generators)}
+    assert found == {(frame.loc[synthetic[0], "gait_id"], "lineage seed_gait_id")}
+    frame.loc[synthetic[1], "checkpoint_sha256"] = "0" * 64
+    frame.loc[synthetic[0], "generator"] = "unknown"
+    found = {(p["gait_id"], p["check"]) for p in gait_problems(frame, generators)}
+    assert found == {(frame.loc[synthetic[1], "gait_id"], "lineage checkpoint_sha256"),
+                     (frame.loc[synthetic[0], "gait_id"], "generator")}
+    # without the metadata (an older directory), every synthetic gait needs the seeded lineage
+    assert {p["check"] for p in gait_problems(frame)} == {"lineage seed_gait_id"}
 
 
 def test_label_measures():

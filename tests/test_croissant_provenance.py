@@ -242,6 +242,37 @@ def test_shards_are_a_file_set_read_in_order(sample, tmp_path):
     assert croissant_problems(tmp_path, doc) == []
 
 
+def test_parts_are_record_sets_of_their_own(sample, tmp_path):
+    """Shards of the real gaits and of each generator family (``gaits-<n>-<part>.parquet``): one FileSet and one
+    record set per part beside ``gaits``; mlcroissant validates them and reads each part's gaits alone."""
+    table, meta = sample
+    n_real = table.column("kind").to_pylist().count("real")
+    generator = pa.array([None] * n_real + ["fam_a", "fam_b"], pa.string())
+    table = table.append_column("generator", generator)
+    parts = {"real": (0, n_real), "fam_a": (n_real, 1), "fam_b": (n_real + 1, 1)}
+    shards = {}
+    for k, (part, (first, rows)) in enumerate(parts.items()):
+        shards[part] = [f"gaits-{k:03d}-{part}.parquet"]
+        write_parquet(table.slice(first, rows), tmp_path / shards[part][0])
+    write_hdf5_atomic(table, {}, tmp_path / "gaits.h5", meta)
+    doc = croissant_metadata(tmp_path, **_describe(table), parts=shards)
+    write_croissant(tmp_path, doc)
+    assert [rs["@id"] for rs in doc["recordSet"]] == ["gaits", "real", "fam_a", "fam_b"]
+    assert {o["@id"]: o["includes"] for o in doc["distribution"] if o["@type"] == "cr:FileSet"} == {
+        "gaits-parquet-shards": "gaits-*.parquet", "gaits-real": "gaits-*-real.parquet",
+        "gaits-fam_a": "gaits-*-fam_a.parquet", "gaits-fam_b": "gaits-*-fam_b.parquet"}
+    assert croissant_problems(tmp_path, doc) == []
+    result = _validate(tmp_path / CROISSANT_NAME)
+    assert result.returncode == 0 and _issues(result.stdout + result.stderr) == [], result.stderr
+    dataset = mlc.Dataset(jsonld=tmp_path / CROISSANT_NAME)
+    ids = table.column("gait_id").to_pylist()
+    assert [r["fam_b/gait_id"].decode() for r in dataset.records("fam_b")] == ids[n_real + 1:]
+    assert [r["real/gait_id"].decode() for r in dataset.records("real")] == ids[:n_real]
+    # a part's record set that lost a field is a problem
+    del doc["recordSet"][2]["field"][1]
+    assert any("record set 'fam_a'" in p for p in croissant_problems(tmp_path, doc))
+
+
 def _missing_column(doc):
     doc["recordSet"][0]["field"][3]["source"]["extract"]["column"] = "emotion_label"
 
@@ -404,7 +435,7 @@ def test_the_running_publish_stage_records_its_lineage_whatever_ran_after_it(pub
     directory, _ = published
     doc = prov_document(stage_graph(REPO, LOCK, running="publish"), REPO, directory)
     assert set(doc["activity"]) == {f"stage:{s}" for s in ("ingest", "annotate", "split", "train", "synthesize",
-                                                           "publish")}
+                                                           "fit_pca_gaussian", "synthesize_pca_gaussian", "publish")}
     lock = _lock()
     earlier = {**lock, "stages": {k: v for k, v in lock["stages"].items() if k not in ("publish", "audit")}}
     path = tmp_path / "dvc.lock"

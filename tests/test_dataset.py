@@ -229,3 +229,45 @@ def test_verify_names_missing_metadata_and_unlisted_files(real, tmp_path):
     assert any("schema metadata key 'emogait' missing" in p for p in problems), problems
     assert any(p == "notes.txt: present but not listed in SHA256SUMS" for p in problems), problems
     assert any(p.startswith("gaits.parquet: sha256 mismatch") for p in problems), problems
+
+
+def _families(real: tuple[pa.Table, dict]) -> tuple[pa.Table, dict, dict[str, list[int]]]:
+    """The sample with its last four gaits relabelled as synthetic gaits of two declared families."""
+    table, meta = real
+    n = table.num_rows
+    kind = ["real"] * (n - 4) + ["synthetic"] * 4
+    generator = [None] * (n - 4) + ["fam_a", "fam_a", "fam_b", "fam_b"]
+    sha = [None] * (n - 4) + ["a" * 64, "a" * 64, "b" * 64, "b" * 64]
+    table = table.set_column(table.column_names.index("kind"), "kind", pa.array(kind, pa.string()))
+    table = table.append_column("generator", pa.array(generator, pa.string()))
+    table = table.append_column("checkpoint_sha256", pa.array(sha, pa.string()))
+    meta = {**meta, "generators": {"fam_a": {"model_sha256": "a" * 64}, "fam_b": {"model_sha256": "b" * 64}}}
+    parts = {"real": list(range(n - 4)), "fam_a": [n - 4, n - 3], "fam_b": [n - 2, n - 1]}
+    return _with_meta(table, meta), meta, parts
+
+
+def _publish_parts(directory, table: pa.Table, meta: dict, parts: dict[str, list[int]]):
+    directory.mkdir(parents=True)
+    for k, (part, rows) in enumerate(parts.items()):
+        write_parquet(table.take(rows), directory / f"gaits-{k:03d}-{part}.parquet")
+    write_hdf5_atomic(table.take([i for rows in parts.values() for i in rows]), {}, directory / "gaits.h5", meta)
+    write_sha256sums(directory)
+    return directory
+
+
+def test_verify_checks_every_generator_family(real, tmp_path):
+    table, meta, parts = _families(real)
+    assert verify(_publish_parts(tmp_path / "sound", table, meta, parts)) == []
+    swapped = {"real": parts["real"], "fam_a": parts["fam_b"], "fam_b": parts["fam_a"]}
+    problems = verify(_publish_parts(tmp_path / "swapped", table, meta, swapped))
+    assert any("gaits-001-fam_a.parquet: expected only fam_a gaits" in p for p in problems), problems
+    sha = table.column("checkpoint_sha256").to_pylist()
+    sha[-1] = "c" * 64
+    other = table.set_column(table.column_names.index("checkpoint_sha256"), "checkpoint_sha256",
+                             pa.array(sha, pa.string()))
+    problems = verify(_publish_parts(tmp_path / "sha", other, meta, parts))
+    assert any("generator 'fam_b': 1 gaits with checkpoint_sha256 other than" in p for p in problems), problems
+    declared = {**meta, "generators": {"fam_a": meta["generators"]["fam_a"], "fam_c": {"model_sha256": "c" * 64}}}
+    problems = verify(_publish_parts(tmp_path / "undeclared", _with_meta(table, declared), declared, parts))
+    assert any("synthetic gaits of ['fam_b']" in p for p in problems), problems
+    assert any("generator 'fam_c': declared in the metadata, but no gait has it" in p for p in problems), problems

@@ -64,7 +64,7 @@ def test_dvc_repro_runs_every_stage_then_is_a_noop(tmp_path):
     before = _digests(published)
     # Rerun what makes the published files: every byte the same, provenance.json and SHA256SUMS included (they
     # carry the md5 of every stage output in dvc.lock, so no output may hold a timing).
-    for stage in ("train", "synthesize", "publish"):
+    for stage in ("train", "synthesize", "fit_pca_gaussian", "synthesize_pca_gaussian", "publish"):
         _run(dvc + ["repro", "-f", "-s", stage], work, env)
     assert _digests(published) == before
     assert "up to date" in _run(dvc + ["status"], work, env).stdout
@@ -92,13 +92,26 @@ def check_published(published: Path, work: Path) -> None:
                                str(published / "croissant.json")], capture_output=True, text=True)
     assert validate.returncode == 0, validate.stderr[-2000:]
     frame = load_dataframe(published)
-    synthetic = frame[frame["kind"] == "synthetic"]
-    assert len(synthetic) == 5000 and (frame["kind"] == "real").sum() > 1000
-    emotions = np.stack(synthetic["emotion"].to_numpy())
-    assert emotions.shape == (5000, 4) and np.abs(emotions.sum(-1) - 1).max() <= 1e-5
-    per_frame = np.stack(synthetic["emotion_per_frame"].to_numpy())
-    assert per_frame.shape == (5000, 60, 4) and np.abs(per_frame.sum(-1) - 1).max() <= 1e-5
-    assert synthetic[["checkpoint_sha256", "seed_gait_id", "trajectory_id", "emotion_recipe"]].notna().all().all()
+    everything = frame[frame["kind"] == "synthetic"]
+    assert everything["generator"].value_counts().to_dict() == {"autoregressive_affect": 5000, "pca_gaussian": 5000}
+    assert (frame["kind"] == "real").sum() > 1000 and frame.loc[frame["kind"] == "real", "generator"].isna().all()
+    for name, family in everything.groupby("generator"):
+        emotions = np.stack(family["emotion"].to_numpy())
+        assert emotions.shape == (5000, 4) and np.abs(emotions.sum(-1) - 1).max() <= 1e-5, name
+        per_frame = np.stack(family["emotion_per_frame"].to_numpy())
+        assert per_frame.shape == (5000, 60, 4) and np.abs(per_frame.sum(-1) - 1).max() <= 1e-5, name
+        assert family[["checkpoint_sha256", "trajectory_id", "emotion_recipe"]].notna().all().all(), name
+        assert family["checkpoint_sha256"].nunique() == 1, name
+    # the same plan rows: family ids differ only by the family's name
+    synthetic = everything[everything["generator"] == "autoregressive_affect"]
+    other = everything[everything["generator"] == "pca_gaussian"]
+    assert [g.replace("syn-pca_gaussian-", "syn-") for g in other["gait_id"]] == list(synthetic["gait_id"])
+    assert other["seed_gait_id"].isna().all() and synthetic["seed_gait_id"].notna().all()
+    generators = json.loads((published / "generators.json").read_text())
+    assert {k: v["gaits"] for k, v in generators.items()} == {"autoregressive_affect": 5000, "pca_gaussian": 5000}
+    cycles = generators["pca_gaussian"]["model_lineage"]["cycles_per_emotion_model"]
+    assert all(cycles[e] for e in ("happy", "sad", "angry", "neutral"))
+    check_hugging_face(published, frame, work / "hf_cache")
     real = frame[frame["kind"] == "real"]
     assert real[["source_file", "source_sha256", "t_start", "t_end"]].notna().all().all()
     assert set(real.loc[real["gait_id"].isin(synthetic["gait_id"]), "gait_id"]) == set()
@@ -111,7 +124,7 @@ def check_published(published: Path, work: Path) -> None:
     assert np.array_equal(positions[0], np.asarray(frame["positions"].iloc[0]))
     (count,), = duckdb.sql(f"select count(*) from read_parquet('{published}/gaits-*.parquet') "
                            "where kind = 'synthetic'").fetchall()
-    assert count == 5000
+    assert count == 10000
     with h5py.File(published / "gaits.h5") as h5:
         assert h5["positions"].shape == (len(frame), 60, 21, 3) and h5["rotations"].shape == (len(frame), 60, 21, 4)
         assert h5["emotion_per_frame"].shape == (len(frame), 60, 4)
@@ -131,11 +144,37 @@ def check_published(published: Path, work: Path) -> None:
         read_back = _bvh_positions(work / "bvh" / bvh_file_name(gait_id), load_skeleton(SKELETON)).numpy()
         stored = frame.loc[frame["gait_id"] == gait_id, "positions"].iloc[0]
         assert np.linalg.norm(read_back - stored, axis=-1).max() < TOLERANCE_M, gait_id
-    report = json.loads((work / "reports/synthesize.json").read_text())
-    assert report["gaits"] == 5000 and report["copied_real_frames"] == 0 and report["finite"]
-    assert report["emotion_novelty"]["passed"] and report["trajectory_novelty"]["passed"]
-    assert set(report["walking"]["synthetic"]) == {"happy", "sad", "angry", "neutral"}
-    assert sorted(p.name for p in (published / "previews").glob("*.png"))
+    for stage in ("synthesize", "synthesize_pca_gaussian"):
+        report = json.loads((work / f"reports/{stage}.json").read_text())
+        assert report["gaits"] == 5000 and report["copied_real_frames"] == 0 and report["finite"], stage
+        assert report["emotion_novelty"]["passed"] and report["trajectory_novelty"]["passed"], stage
+        assert set(report["walking"]["synthetic"]) == {"happy", "sad", "angry", "neutral"}, stage
+    previews = {p.name for p in (published / "previews").glob("*.png")}
+    assert {"emotions.png", "transition.png", "emotions_pca_gaussian.png", "transition_pca_gaussian.png"} <= previews
+
+
+def check_hugging_face(published: Path, frame, cache: Path) -> None:
+    """The card's Hugging Face configs, loaded by ``datasets`` as a user would (offline, a scratch cache): each
+    part's gaits, and positions reshaped to (60, 21, 3) as the card documents."""
+    os.environ.setdefault("HF_HUB_OFFLINE", "1")  # local files only: nothing may reach the Hub
+    os.environ.setdefault("HF_DATASETS_OFFLINE", "1")
+    import datasets
+    import numpy as np
+
+    card = (published / "README.md").read_text()
+    assert card.startswith("---\n")
+    header = yaml.safe_load(card.split("---\n")[1])
+    configs = {c["config_name"]: c for c in header["configs"]}
+    assert set(configs) == {"autoregressive_affect", "pca_gaussian", "real", "all"}
+    assert configs["autoregressive_affect"].get("default") is True
+    for name, expected in (("pca_gaussian", 5000), ("real", int((frame["kind"] == "real").sum()))):
+        files = sorted(published.glob(configs[name]["data_files"][0]["path"]))
+        ds = datasets.load_dataset("parquet", data_files=[str(f) for f in files], split="train",
+                                   cache_dir=str(cache))
+        assert ds.num_rows == expected, name
+        positions = ds.with_format("numpy", columns=["positions"])[:]["positions"].reshape(-1, 60, 21, 3)
+        first = frame.loc[frame["gait_id"] == ds[0]["gait_id"], "positions"].iloc[0]
+        assert positions.shape == (expected, 60, 21, 3) and np.array_equal(positions[0], first), name
 
 
 def check_audit(reports: Path, published: Path, tmp_path: Path) -> None:
@@ -143,7 +182,7 @@ def check_audit(reports: Path, published: Path, tmp_path: Path) -> None:
     from stages.cli import main as emogait
 
     metrics = json.loads((reports / "metrics.json").read_text())
-    assert metrics["problem_count"] == 0 and metrics["kinds"]["synthetic"] == 5000
+    assert metrics["problem_count"] == 0 and metrics["kinds"]["synthetic"] == 10000
     recognition = metrics["recognisability"]
     assert set(recognition["by_recogniser"]) == {"summary_mlp", "temporal_cnn"}
     for kind, figures in recognition["by_recogniser"].items():

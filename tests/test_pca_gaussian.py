@@ -196,7 +196,8 @@ def test_walks_are_seeded_shaped_and_follow_their_path(family):
 
 
 def test_cycles_join_without_jumps_and_feet_stay_planted(family, annotated_split):
-    from pipeline.evaluation.autoregressive import skating_speed, straight_path
+    from pipeline.evaluation.autoregressive import straight_path
+    from pipeline.ops.footlock import skating_speed
     from pipeline.ops.quaternion import qangle
     from stages.configs import contact_config
 
@@ -250,3 +251,112 @@ def test_the_model_file_is_deterministic_and_walks_as_the_fit_does(family, tmp_p
     (tmp_path / "other.pt").write_bytes(b"not a model")
     with pytest.raises(Exception):
         load_model(tmp_path / "other.pt")
+
+
+def test_leave_one_clip_out_reading_needs_two_clips_per_emotion():
+    from pipeline.generators.pca_gaussian.model import leave_one_clip_out_reading
+
+    rng = np.random.default_rng(0)
+    centres = np.eye(4) * 10.0
+    dominant = np.repeat(np.arange(4), 6)  # two clips of three cycles per emotion
+    clips = np.array([f"e{e}c{c}" for e in range(4) for c in range(2) for _ in range(3)])
+    scores = centres[dominant] + rng.normal(0, 0.5, (24, 4))
+    read = leave_one_clip_out_reading(scores, dominant, clips)
+    assert read["balanced_accuracy"] == 1.0 and read["cycles"] == 24 and read["clips"] == 8
+    # one clip of emotion 0: left out, no centroid of its own emotion is left, so it is never read right
+    single = np.where(np.char.startswith(clips, "e0"), "e0c0", clips)
+    read = leave_one_clip_out_reading(scores, dominant, single)
+    assert read["confusion"][0][0] == 0 and read["balanced_accuracy"] == 0.75
+    assert read["clips_per_emotion"]["happy"] == 1
+
+
+def test_cycle_novelty_counts_a_reproduced_cycle():
+    from pipeline.generators.pca_gaussian.model import StyleModel, cycle_novelty
+
+    scores = np.random.default_rng(1).normal(size=(10, 3))
+    clips = np.array([f"c{i // 2}" for i in range(10)])
+
+    def model(mean, std):
+        return StyleModel(mean=mean, std=np.full(3, std), max_change=np.ones(3), duration_mean=30.0,
+                          duration_std=1.0, duration_max_change=2.0)
+    copying = cycle_novelty([model(scores[3], 0.0)], scores, clips, per_emotion=5, seed=0, values_per_cycle=3)
+    assert copying["reproduced"] == 5 and copying["drawn_to_nearest_real_deg"]["median"] == 0.0
+    drawing = cycle_novelty([model(scores[3], 1.0)], scores, clips, per_emotion=5, seed=0, values_per_cycle=3)
+    assert drawing["reproduced"] == 0 and drawing["drawn_to_nearest_real_deg"]["min"] > 0
+
+
+def test_plan_rows_become_published_rows_of_the_family(family, annotated_split, tmp_path):
+    """Plan rows through the family-agnostic synthesis (annotation, path deviation) into the published schema:
+    the family's ids, its generator name and model sha256, no seed, and its placed paths followed."""
+    import pyarrow as pa
+
+    from pipeline.publish.table import generator_entry, synthetic_table
+    from pipeline.synth.plan import recipe_json
+    from pipeline.synth.synthesis import SynthesisConfig, SynthesisPlan, synthesize
+
+    fam, _ = family
+    table, arrays, _, _ = annotated_split
+    params = load_params()
+    cfg = SynthesisConfig.from_dict({**params["synthesize"], "batch": 4}, frames=60)
+    work = SynthesisPlan.prepare(table, arrays, cfg)
+    rows = work.plan[::1000][:5]
+    out = synthesize(fam, rows, work.emotions, {t.id: t for t in work.trajectories}, fam.skeleton,
+                     annotate_config(params), cfg)
+    assert out["positions"].shape == (5, 60, 21, 3) and not out["phase_from_condition"].any()
+    assert np.isfinite(out["path_deviation_m"]).all() and out["path_deviation_m"].max() < 0.35
+    entry = generator_entry(fam.name, fam.description, fam.model_sha256, fam.seeded)
+    published = synthetic_table(rows, [recipe_json(r["recipe"], work.emotions) for r in rows], out, entry, table,
+                                named_family="autoregressive_affect")
+    assert published.column("gait_id").to_pylist() == [r["gait_id"].replace("syn-", "syn-pca_gaussian-", 1)
+                                                         for r in rows]
+    assert set(published.column("generator").to_pylist()) == {"pca_gaussian"}
+    assert set(published.column("checkpoint_sha256").to_pylist()) == {fam.model_sha256}
+    assert published.column("seed_gait_id").null_count == 5 and isinstance(published, pa.Table)
+    # the model file's lineage: the cycles each emotion model was fitted on
+    from pipeline.generators.pca_gaussian.family import PCAGaussianFamily, model_bytes
+
+    (tmp_path / "model.pt").write_bytes(model_bytes(family[1], CycleConfig(), ModelConfig()))
+    loaded = PCAGaussianFamily.from_file(tmp_path / "model.pt", fam.skeleton, fam.placement)
+    cycles = loaded.lineage()["cycles_per_emotion_model"]
+    assert [len(cycles[e]) for e in ("happy", "sad", "angry", "neutral")] == [m.cycles for m in fam.model.models]
+    assert loaded.model_sha256 == fam.model_sha256
+
+
+def test_the_emotion_condition_moves_the_family_s_gaits(family, annotated_split):
+    """Condition sensitivity as evaluate_families measures it for every family: the same plan rows under the four
+    one-hot emotions, affect summaries vs the real emotion centroids."""
+    from pipeline.evaluation.families import AffectReference, family_sensitivity, sensitivity_rows, under_one_hot
+    from pipeline.synth.synthesis import SynthesisConfig, SynthesisPlan
+
+    fam, _ = family
+    table, arrays, _, _ = annotated_split
+    cfg = SynthesisConfig.from_dict(load_params()["synthesize"], frames=60)
+    work = SynthesisPlan.prepare(table, arrays, cfg)
+    split = np.array(table.column("split").to_pylist())
+    train = np.flatnonzero((split == "train") & ~np.isnan(arrays["emotion"]).any(-1))
+    reference = AffectReference(arrays["positions"][train], arrays["emotion"][train])
+    rows = sensitivity_rows(work.plan, 6)
+    assert len(rows) == 6 and all(r["recipe"]["kind"] == "single" for r in rows)
+    generated = under_one_hot(fam, rows, work.emotions, {t.id: t for t in work.trajectories}, cfg)
+    assert not torch.equal(generated[0].positions, generated[1].positions)
+    figures = family_sensitivity(generated, reference)
+    assert figures["seeds"] == 6 and 0.2 < figures["fraction_of_real"] < 5.0, figures
+
+
+def test_the_emotion_feature_rule_keeps_more_components_where_the_basis_loses_emotion(family, skeleton):
+    """The basis at 90 % variance loses what tells the emotions apart (their mean affective features move by
+    SDs); every component gives them back (exactly for the emotions whose few cycles all formed the balanced
+    basis, nearly for neutral's 102); the rule stops at the first number within the bound it is given."""
+    from pipeline.generators.pca_gaussian.model import components_for_emotions, emotion_feature_errors
+
+    _, f = family
+    x, dominant, frames = f.cycles.flat(), f.cycles.dominant(), f.model.frames
+    args = (skeleton.offsets, skeleton.parents, frames)
+    everything = emotion_feature_errors(x, dominant, f.basis, len(f.basis.explained), *args)
+    assert everything[:3].max() < 1e-6 and everything[3] < 0.05
+    at_start = np.nanmax(emotion_feature_errors(x, dominant, f.basis, f.components, *args))
+    assert at_start > 1.0  # measured on the default data: sad's features 3.3 SDs off at 12 components
+    loose, tried = components_for_emotions(x, dominant, f.basis, at_start + 1.0, f.components, *args)
+    assert loose == f.components and list(tried) == [f.components]
+    k, tried = components_for_emotions(x, dominant, f.basis, 0.5, f.components, *args)
+    assert f.components < k <= len(f.basis.explained) and max(tried[k]) <= 0.5

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 from pipeline.core.emotions import dominant_emotion
-from pipeline.dataset import directory_schema, load_dataframe, verify
+from pipeline.dataset import directory_metadata, directory_schema, load_dataframe, verify
 from pipeline.io.files import schema_meta
 from pipeline.recognition import (
     RECOGNISER_NAMES,
@@ -44,7 +44,7 @@ from pipeline.recognition import (
 
 COLUMNS = ("gait_id", "kind", "split", "source", "label_method", "generator", "emotion", "emotion_per_frame",
            "contacts", "phase", "positions", "heading", "affective", "movement", "source_file", "source_sha256", "t_start", "t_end",
-           "checkpoint_sha256", "seed_gait_id", "trajectory_id", "emotion_recipe")
+           "checkpoint_sha256", "seed_gait_id", "trajectory_id", "emotion_recipe", "plan_seed")
 LINEAGE = {"real": ("source_file", "source_sha256", "t_start", "t_end"),
            "synthetic": ("checkpoint_sha256", "seed_gait_id", "trajectory_id", "emotion_recipe")}
 UNLABELLED = "unlabelled"
@@ -61,10 +61,15 @@ def load_for_audit(directory) -> tuple[pd.DataFrame, dict[str, Any]]:
 
 # ----------------------------------------------------------------------------------------------- checks
 
-def gait_problems(frame: pd.DataFrame) -> list[dict[str, str]]:
+def gait_problems(frame: pd.DataFrame, generators: dict[str, Any] | None = None) -> list[dict[str, str]]:
     """Per-gait value checks the loader's ``verify`` does not make: contacts 0/1, phase in [0, 2π), the lineage
-    of each kind present, a known kind. One row per gait and check: gait, check, expected, found."""
+    of each kind present, a known kind. One row per gait and check: gait, check, expected, found.
+
+    generators: the directory metadata's ``generators`` (family -> entry with ``lineage`` columns and
+    ``model_sha256``), if it has them: a family's gaits then need its own lineage columns (a family without seeds
+    has no ``seed_gait_id``), a declared family and its model's sha256."""
     rows = []
+    generators = generators or {}
 
     def add(gait: str, check: str, expected: str, found: str) -> None:
         rows.append({"gait_id": gait, "check": check, "expected": expected, "found": found})
@@ -77,8 +82,22 @@ def gait_problems(frame: pd.DataFrame) -> list[dict[str, str]]:
         if phase is None or not ((phase >= 0) & (phase < 2 * math.pi)).all():
             add(gait, "phase", "in [0, 2π)", "missing" if phase is None else
                 f"min {np.nanmin(phase):.4f}, max {np.nanmax(phase):.4f}, NaN {int(np.isnan(phase).sum())}")
-    for kind, fields in LINEAGE.items():
-        part = frame[frame["kind"] == kind]
+    groups = [("real", frame["kind"] == "real", LINEAGE["real"])]
+    synthetic = frame["kind"] == "synthetic"
+    if generators and "generator" in frame:
+        for name, entry in generators.items():
+            groups.append((f"{name} synthetic", synthetic & (frame["generator"] == name), entry["lineage"]))
+            part = frame[synthetic & (frame["generator"] == name)]
+            for gait in part.loc[part["checkpoint_sha256"] != entry["model_sha256"], "gait_id"]:
+                add(gait, "lineage checkpoint_sha256", f"{name}'s model {entry['model_sha256'][:12]}…",
+                    "another sha256")
+        for gait, g in zip(frame.loc[synthetic, "gait_id"], frame.loc[synthetic, "generator"]):
+            if g not in generators:
+                add(gait, "generator", " or ".join(generators), repr(g))
+    else:
+        groups.append(("synthetic", synthetic, LINEAGE["synthetic"]))
+    for kind, mask, fields in groups:
+        part = frame[mask]
         for field in fields:
             if field not in frame:
                 add("(all)", f"lineage {field}", f"column for {kind} gaits", "no column")
@@ -92,10 +111,10 @@ def gait_problems(frame: pd.DataFrame) -> list[dict[str, str]]:
 
 
 def all_problems(directory, frame: pd.DataFrame) -> list[dict[str, str]]:
-    """The loader's verify (checksums, schema, shapes, finite values, emotion rows, unique ids, HDF5) and the
-    per-gait checks, as one table."""
+    """The loader's verify (checksums, schema, shapes, finite values, emotion rows, unique ids, HDF5, generator
+    families) and the per-gait checks, as one table."""
     return [{"gait_id": "", "check": "verify", "expected": "", "found": p} for p in verify(directory)] + \
-        gait_problems(frame)
+        gait_problems(frame, directory_metadata(directory).get("generators"))
 
 
 # ------------------------------------------------------------------------------------------------ labels

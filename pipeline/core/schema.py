@@ -74,9 +74,13 @@ COLUMNS = {c.name: c for c in (
                                   "heading-to-path angle, path curvature", ("T", 5), "m, m/frame, m/frame, rad, m/frame"),
     Column("source_file", "string", "real gaits: mocap file path under the source root"),
     Column("source_sha256", "string", "real gaits: sha256 of the mocap file"),
-    Column("checkpoint_sha256", "string", "synthetic gaits: sha256 of the generator checkpoint"),
-    Column("seed_gait_id", "string", "synthetic gaits: the real test-split gait whose first frames seeded the "
-                                     "generator (not published as synthetic frames)"),
+    Column("generator", "string", "synthetic gaits: the generator family that made the gait "
+                                  "(autoregressive_affect, pca_gaussian, ...; the metadata's 'generators' describes "
+                                  "each); real gaits: null"),
+    Column("checkpoint_sha256", "string", "synthetic gaits: sha256 of the generator family's model file"),
+    Column("seed_gait_id", "string", "synthetic gaits of a seeded family: the real train-split gait whose first "
+                                     "frames seeded the generator (not published as synthetic frames); null for a "
+                                     "family that needs no seed"),
     Column("trajectory_id", "string", "synthetic gaits: planned trajectory"),
     Column("trajectory_family", "string", "synthetic gaits: trajectory family"),
     Column("emotion_recipe", "string", "synthetic gaits: JSON recipe (single emotion or transition from/to, with "
@@ -89,7 +93,7 @@ INGESTED = ("gait_id", "clip_id", "source", "file", "sha256", "t_start", "t_end"
             "source_leg_m", "content", "style", "label_method", "emotion", "positions", "rotations", "root_path",
             "heading")
 ANNOTATIONS = ("contacts", "phase", "phase_rate", "affective", "movement")  # added by annotate
-PUBLISHED = ("gait_id", "kind", "split", "source", "content", "label_method", "emotion", "emotion_per_frame",
+PUBLISHED = ("gait_id", "kind", "generator", "split", "source", "content", "label_method", "emotion", "emotion_per_frame",
              "positions", "rotations", "root_path", "heading", *ANNOTATIONS, "source_file", "source_sha256",
              "t_start", "t_end", "checkpoint_sha256", "seed_gait_id", "trajectory_id", "trajectory_family",
              "emotion_recipe", "plan_seed")

@@ -25,7 +25,8 @@ class GeneratedMotion:
     heading (N, T) body heading about +Y. context_positions (N, C, J, 3): frames that precede each gait but are
     not part of it (e.g. a seed prefix), which annotation may look at (strikes before the first frame fix its
     phase), or None. conditioned_phase (N, T): the stepping phase the family generated with, kept where the
-    contacts give too few strikes to define one, or None.
+    contacts give too few strikes to define one, or None. placed_paths (N, K, 2): the trajectory pieces as the
+    family placed them in the world (ground x, z), which the gaits were steered along.
     """
 
     positions: torch.Tensor
@@ -33,13 +34,21 @@ class GeneratedMotion:
     heading: torch.Tensor
     context_positions: torch.Tensor | None = None
     conditioned_phase: torch.Tensor | None = None
+    placed_paths: torch.Tensor | None = None
 
 
 class GeneratorFamily(Protocol):
     """A fitted generator, ready to generate plan rows."""
 
     name: str  # the published ``generator`` value, e.g. "autoregressive_affect"
+    description: str  # one sentence for the dataset card and the published metadata
     model_sha256: str  # of the fitted model's file
+    seeded: bool  # whether each gait continues a real seed gait (the plan row's ``seed_gait_id``)
+
+    def lineage(self) -> dict[str, Any]:
+        """The model's own lineage, published beside the gaits (e.g. the real cycles a model's statistics came
+        from); plain JSON values."""
+        ...
 
     def generate(self, rows: Sequence[dict[str, Any]], paths: torch.Tensor,
                  emotions: torch.Tensor) -> GeneratedMotion:

@@ -1,7 +1,9 @@
 """Croissant 1.1 JSON-LD for a published gait directory, and the checks that keep it true.
 
 The document describes the files the directory ships (the Parquet gaits, one file or ``gaits-*.parquet``
-shards, and ``gaits.h5``, each with its sha256) and one record set, ``gaits``, with a field per Parquet column.
+shards, and ``gaits.h5``, each with its sha256) and the record set ``gaits`` (every gait), with a field per
+Parquet column; where the shards are split into parts (the real gaits, each generator family's), a FileSet and a
+record set of the same fields per part.
 Fields are derived from the Parquet schema and its ``emogait`` metadata (per-gait array shapes, units), never
 from a list of column names, so a column added upstream is described without a change here. The dataset-level
 Responsible-AI properties (the Croissant RAI 1.0 vocabulary) say how labels were made.
@@ -125,13 +127,13 @@ def _array_shape(kind: pa.DataType, column: str, shapes: Mapping[str, list[int]]
 
 
 def _field(schema_field: pa.Field, source: tuple[str, str], meta: Mapping[str, Any],
-           description: str) -> dict[str, Any]:
+           description: str, record_set: str = RECORD_SET) -> dict[str, Any]:
     """The Field of one Parquet column; source: ("fileObject" or "fileSet", the id of the Parquet resource)."""
     name, kind = schema_field.name, schema_field.type
     units = meta.get("units", {}).get(name)
     field: dict[str, Any] = {
         "@type": "cr:Field",
-        "@id": f"{RECORD_SET}/{name}",
+        "@id": f"{record_set}/{name}",
         "name": name,
         "description": f"{description} Units: {units}." if units else description,
     }
@@ -166,13 +168,16 @@ def _distribution(directory: Path, files: list[Path]) -> tuple[list[dict[str, An
 
 def croissant_metadata(directory: Path, *, name: str, description: str, version: str, license: list[str] | str,
                        citation: str, url: str, date_published: str, creators: list[dict[str, str]],
-                       rai: Mapping[str, str | list[str]], column_descriptions: Mapping[str, str]) -> dict[str, Any]:
+                       rai: Mapping[str, str | list[str]], column_descriptions: Mapping[str, str],
+                       parts: Mapping[str, list[str]] | None = None) -> dict[str, Any]:
     """The Croissant 1.1 JSON-LD document of a published gait directory.
 
     date_published: ISO 8601 date (given, not read from the clock, so the document is reproducible);
     creators: schema.org Person/Organization nodes, e.g. ``{"@type": "sc:Organization", "name": ...}``;
     rai: Croissant RAI 1.0 property (``dataCollection`` or ``rai:dataCollection``, ...) -> text (or texts);
-    column_descriptions: Parquet column -> what it holds; every column needs one, and no other key is allowed.
+    column_descriptions: Parquet column -> what it holds; every column needs one, and no other key is allowed;
+    parts: part name -> its shard files (``gaits-<n>-<part>.parquet``), each described as a FileSet and a record
+    set of its own beside ``gaits``.
     Raises ValueError for an undocumented or unknown column, an unknown RAI property, or an array shape in the
     schema metadata that disagrees with the Parquet list size.
     """
@@ -188,12 +193,24 @@ def croissant_metadata(directory: Path, *, name: str, description: str, version:
     if bad := sorted(k for k in rai if k.removeprefix("rai:") not in RAI_PROPERTIES):
         raise ValueError(f"rai: expected Croissant RAI 1.0 properties ({sorted(RAI_PROPERTIES)}), found {bad}")
     distribution, source = _distribution(directory, files)
-    fields = [_field(f, source, meta, column_descriptions[f.name]) for f in schema]
-    record_set = {"@type": "cr:RecordSet", "@id": RECORD_SET, "name": RECORD_SET,
-                  "description": "One record per gait; an array field holds its values row-major, of shape arrayShape.",
-                  "field": fields}
-    if ID_COLUMN in schema.names:
-        record_set["key"] = {"@id": f"{RECORD_SET}/{ID_COLUMN}"}
+
+    def record_set(name: str, source: tuple[str, str], what: str) -> dict[str, Any]:
+        rs = {"@type": "cr:RecordSet", "@id": name, "name": name,
+              "description": f"One record per gait ({what}); an array field holds its values row-major, of shape "
+                            "arrayShape.",
+              "field": [_field(f, source, meta, column_descriptions[f.name], name) for f in schema]}
+        if ID_COLUMN in schema.names:
+            rs["key"] = {"@id": f"{name}/{ID_COLUMN}"}
+        return rs
+
+    record_sets = [record_set(RECORD_SET, source, "every gait")]
+    for part, shard_files in (parts or {}).items():
+        part_id = f"gaits-{part}"
+        distribution.insert(-1, {"@type": "cr:FileSet", "@id": part_id, "name": part_id,
+                                 "description": f"The Parquet shards of the part '{part}' ({len(shard_files)} files).",
+                                 "encodingFormat": PARQUET_FORMAT, "includes": f"gaits-*-{part}.parquet"})
+        what = "the real gaits" if part == "real" else f"the synthetic gaits of the generator family {part}"
+        record_sets.append(record_set(part, ("fileSet", part_id), what))
     return {
         "@context": copy.deepcopy(CONTEXT),
         "@type": "sc:Dataset",
@@ -208,7 +225,7 @@ def croissant_metadata(directory: Path, *, name: str, description: str, version:
         "creator": creators,
         **{f"rai:{k.removeprefix('rai:')}": v for k, v in rai.items()},
         "distribution": distribution,
-        "recordSet": [record_set],
+        "recordSet": record_sets,
     }
 
 
@@ -242,7 +259,17 @@ def croissant_problems(directory: Path, doc: Mapping[str, Any]) -> list[str]:
             problems.append(f"{CROISSANT_NAME}: FileObject {item['@id']!r}: sha256 {item.get('sha256')}, "
                             f"the file's is {found}")
     schema = pq.read_schema(files[0])
-    fields = [f for rs in doc.get("recordSet", []) if rs.get("@id") == RECORD_SET for f in rs.get("field", [])]
+    if RECORD_SET not in [rs.get("@id") for rs in doc.get("recordSet", [])]:
+        problems.append(f"{CROISSANT_NAME}: no record set {RECORD_SET!r}")
+    for rs in doc.get("recordSet", []):
+        problems += _record_set_problems(rs, schema)
+    return problems
+
+
+def _record_set_problems(rs: Mapping[str, Any], schema: pa.Schema) -> list[str]:
+    """Where one record set's fields disagree with the Parquet schema."""
+    problems = []
+    fields = rs.get("field", [])
     columns = [f.get("source", {}).get("extract", {}).get("column") for f in fields]
     for field, column in zip(fields, columns):
         if column not in schema.names:
@@ -255,6 +282,6 @@ def croissant_problems(directory: Path, doc: Mapping[str, Any]) -> list[str]:
             if size != kind.list_size:
                 problems.append(f"{CROISSANT_NAME}: field {field['@id']!r}: arrayShape {field.get('arrayShape')!r} "
                                 f"holds {size} values, the Parquet list {kind.list_size}")
-    problems += [f"{CROISSANT_NAME}: Parquet column {c!r} has {columns.count(c)} fields; expected one"
-                 for c in schema.names if columns.count(c) != 1]
+    problems += [f"{CROISSANT_NAME}: record set {rs.get('@id')!r}: Parquet column {c!r} has {columns.count(c)} "
+                 f"fields; expected one" for c in schema.names if columns.count(c) != 1]
     return problems

@@ -22,8 +22,10 @@ from pipeline.annotate.annotation import AnnotateConfig, annotate_clip, stored_p
 from pipeline.core.emotions import EMOTIONS
 from pipeline.core.skeleton import Skeleton
 from pipeline.generators.base import GeneratorFamily
-from pipeline.ops.contacts import phase_rate
+from pipeline.ops.contacts import ContactConfig, phase_rate
 from pipeline.ops.features import movement_features, pose_affective_features
+from pipeline.ops.footlock import skating_speed
+from pipeline.ops.geometry import distance_to_polyline
 from pipeline.synth.novelty import (
     distinct_labels,
     l1_to_labels,
@@ -111,8 +113,9 @@ def synthesize(family: GeneratorFamily, plan: Sequence[dict[str, Any]], emotions
                trajectories: dict[str, Trajectory], skeleton: Skeleton, annotate: AnnotateConfig,
                cfg: SynthesisConfig, progress: Callable[[int, int], None] | None = None) -> dict[str, np.ndarray]:
     """Arrays (gaits, ...) for every plan row, in plan order: positions, rotations, root_path, heading, contacts,
-    phase, phase_rate, affective, movement, emotion_per_frame, the per-gait emotion (mean over the frames) and
-    phase_from_condition (bool per gait)."""
+    phase, phase_rate, affective, movement, emotion_per_frame, the per-gait emotion (mean over the frames),
+    phase_from_condition (bool per gait) and path_deviation_m (per gait: the mean ground distance of the root to
+    the trajectory piece as the family placed it; NaN where the family does not say)."""
     parts: dict[str, list[np.ndarray]] = {}
     for first in range(0, len(plan), cfg.batch):
         rows = plan[first:first + cfg.batch]
@@ -123,7 +126,9 @@ def synthesize(family: GeneratorFamily, plan: Sequence[dict[str, Any]], emotions
                           None if g.conditioned_phase is None else g.conditioned_phase.double(), skeleton, annotate)
         batch.update(positions=g.positions.numpy(), rotations=g.rotations.numpy(),
                      root_path=g.positions[:, :, 0, [0, 2]].numpy(), heading=g.heading.numpy(),
-                     emotion_per_frame=per_frame, emotion=per_frame.mean(1))  # rows sum to 1
+                     emotion_per_frame=per_frame, emotion=per_frame.mean(1),  # rows sum to 1
+                     path_deviation_m=np.full(len(rows), np.nan) if g.placed_paths is None else
+                     distance_to_polyline(g.positions[:, :, 0, [0, 2]], g.placed_paths).mean(-1).numpy())
         for k, v in batch.items():
             parts.setdefault(k, []).append(v if v.dtype == bool else np.asarray(v, dtype=np.float32))
         if progress:
@@ -182,11 +187,12 @@ def plan_rows(plan: Sequence[dict[str, Any]], recipes: Sequence[str]) -> list[tu
 
 
 def synthesis_report(work: SynthesisPlan, synthetic: dict[str, np.ndarray], cfg: SynthesisConfig, fps: float,
-                     model_sha256: str, phase_from_condition: list[str]) -> dict[str, Any]:
-    """Counts, the emotion and trajectory novelty tests (trajectories vs the training clips' root paths), how
-    close the pieces single gaits walk come to training paths, copied real frames. No timing: the report holds
-    only what the inputs determine, so a rerun gives the same bytes (the stage prints its time;
-    benchmarks/generate.py measures it)."""
+                     model_sha256: str, phase_from_condition: list[str], seeded: bool = True,
+                     contacts: ContactConfig | None = None) -> dict[str, Any]:
+    """Counts, the seed pool (a seeded family's), the emotion and trajectory novelty tests (trajectories vs the
+    training clips' root paths), how close the pieces single gaits walk come to training paths, copied real
+    frames. No timing: the report holds only what the inputs determine, so a rerun gives the same bytes (the
+    stage prints its time; benchmarks/ measure it)."""
     table, arrays, plan, trajectories = work.table, work.arrays, work.plan, work.trajectories
     split = np.array(table.column("split").to_pylist())
     clip_ids = table.column("clip_id").to_pylist()
@@ -206,22 +212,24 @@ def synthesis_report(work: SynthesisPlan, synthetic: dict[str, np.ndarray], cfg:
     content = np.array(table.column("content").to_pylist())
     walks = np.flatnonzero((split == "train") & (content == cfg.seed_content)
                            & ~np.isnan(arrays["emotion"]).any(-1))
+    single = np.array([r["recipe"]["kind"] == "single" for r in plan])
     sums = synthetic["emotion"].sum(-1)
     frame_sums = synthetic["emotion_per_frame"].sum(-1)
     min_distance = float(novelty["min_mean_distance_m"])
+    seed_pool = {"splits": list(cfg.seed_splits), "content": cfg.seed_content, "labelled": True,
+                 "rule": "dominant emotion of the seed = dominant emotion the gait starts with",
+                 "gaits": len(work.seed_pools[-1]),
+                 "gaits_per_emotion": {EMOTIONS[k]: len(v) for k, v in work.seed_pools.items() if k >= 0},
+                 "rows_without_matching_seed": sum(not work.seed_pools.get(seed_emotion(r["recipe"], work.emotions))
+                                                   for r in plan),
+                 "used": len({r["seed_gait_id"] for r in plan})} if seeded else "none: the family needs no seed"
     return {
         "gaits": len(plan),
         "per_trajectory": {t.id: sum(r["trajectory_id"] == t.id for r in plan) for t in trajectories},
         "single_emotion_gaits": sum(r["recipe"]["kind"] == "single" for r in plan),
         "transition_gaits": sum(r["recipe"]["kind"] == "transition" for r in plan),
-        "seed_pool": {"splits": list(cfg.seed_splits), "content": cfg.seed_content, "labelled": True,
-                      "rule": "dominant emotion of the seed = dominant emotion the gait starts with",
-                      "gaits": len(work.seed_pools[-1]),
-                      "gaits_per_emotion": {EMOTIONS[k]: len(v) for k, v in work.seed_pools.items() if k >= 0},
-                      "rows_without_matching_seed": sum(not work.seed_pools.get(seed_emotion(r["recipe"], work.emotions))
-                                                        for r in plan),
-                      "used": len({r["seed_gait_id"] for r in plan})},
-        "checkpoint_sha256": model_sha256,
+        "seed_pool": seed_pool,
+        "model_sha256": model_sha256,
         "emotion_rows_max_abs_sum_error": float(max(np.abs(sums - 1).max(), np.abs(frame_sums - 1).max())),
         "emotion_novelty": {"test": f"L1 distance to every distinct training label > {cfg.min_l1_to_training}",
                             "training_labels": distinct_labels(work.labels).tolist(),
@@ -247,9 +255,40 @@ def synthesis_report(work: SynthesisPlan, synthetic: dict[str, np.ndarray], cfg:
                     "real_labelled_train_walks": walking_figures(arrays["root_path"][walks], arrays["emotion"][walks],
                                                                  fps),
                     "why": "net speed well below path speed: the body steps on the spot or circles"},
+        "cycle_frames": {"synthetic_single_emotion": cycle_frames(synthetic["phase_rate"][single],
+                                                                  synthetic["emotion"][single]),
+                         "real_labelled_train_walks": cycle_frames(arrays["phase_rate"][walks], arrays["emotion"][walks]),
+                         "how": "per dominant emotion, median over gaits of 2π / the gait's mean phase rate"},
+        "path_deviation_m": path_deviation(synthetic["path_deviation_m"], [r["trajectory_family"] for r in plan]),
+        **({"foot_skating": foot_skating(synthetic["positions"], arrays["positions"][walks], fps, contacts)}
+           if contacts is not None else {}),
         "copied_real_frames": copied_frames(synthetic["rotations"], arrays["rotations"]),
-        "finite": bool(all(np.isfinite(v).all() for v in synthetic.values())),
+        "finite": bool(all(np.isfinite(v).all() for k, v in synthetic.items() if k != "path_deviation_m")),
     }
+
+
+def cycle_frames(phase_rate: np.ndarray, emotions: np.ndarray) -> dict[str, float]:
+    """Per dominant emotion, the median stepping-cycle length in frames (2π / mean phase rate per gait)."""
+    frames = 2 * np.pi / np.maximum(phase_rate.mean(1), 1e-6)
+    dominant = np.argmax(emotions, axis=-1)
+    return {name: round(float(np.median(frames[dominant == k])), 2) for k, name in enumerate(EMOTIONS)
+            if (dominant == k).any()}
+
+
+def path_deviation(deviation: np.ndarray, families: Sequence[str]) -> dict[str, dict[str, float]]:
+    """Per trajectory family (and all): mean and 90th percentile over gaits of each gait's mean distance (m) from
+    its root to its placed trajectory piece."""
+    families = np.array(families)
+    groups = {"all": np.ones(len(families), bool), **{f: families == f for f in sorted(set(families))}}
+    return {f: {"mean": round(float(np.nanmean(deviation[m])), 4),
+                "p90": round(float(np.nanpercentile(deviation[m], 90)), 4)} for f, m in groups.items()}
+
+
+def foot_skating(synthetic: np.ndarray, real: np.ndarray, fps: float, contacts: ContactConfig) -> dict[str, float]:
+    """Mean horizontal speed of heel/toe points in contact (m/s), synthetic gaits vs real walks, and their ratio."""
+    syn = skating_speed(torch.from_numpy(synthetic), fps, contacts)[0]
+    ref = skating_speed(torch.from_numpy(real), fps, contacts)[0]
+    return {"synthetic_m_s": round(syn, 4), "real_walks_m_s": round(ref, 4), "ratio_to_real": round(syn / ref, 3)}
 
 
 def walking_figures(root_paths: np.ndarray, emotions: np.ndarray, fps: float) -> dict[str, dict[str, float]]:

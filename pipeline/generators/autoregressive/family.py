@@ -24,6 +24,9 @@ class AutoregressiveFamily:
     """A trained network with the real gaits its seeds come from (``arrays``; rows by ``gait_id`` in ``row_of``)."""
 
     name = NAME
+    description = ("affect-based autoregressive network (Bhattacharya et al. 2020): each gait continues the first "
+                   "frames of a real labelled walk, conditioned per frame on its emotion, along its trajectory")
+    seeded = True
 
     def __init__(self, model: EmotiveGaitNet, model_sha256: str, arrays: dict[str, np.ndarray],
                  row_of: dict[str, int], skeleton: Skeleton, placement: PlacementConfig, prefix: int):
@@ -38,11 +41,16 @@ class AutoregressiveFamily:
         model, _, sha = load_checkpoint(path)
         return cls(model, sha, arrays, row_of, skeleton, placement, prefix)
 
+    def lineage(self) -> dict[str, Any]:
+        return {"checkpoint_sha256": self.model_sha256, "prefix_frames": self.prefix,
+                "seeds": "the first prefix frames of each gait's seed_gait_id (a labelled real train-split walk); "
+                         "not published as synthetic frames"}
+
     def generate(self, rows: Sequence[dict[str, Any]], paths: torch.Tensor, emotions: torch.Tensor) -> GeneratedMotion:
         seed_rows = np.array([self.row_of[r["seed_gait_id"]] for r in rows])
         seeds = Seeds.from_arrays(self.arrays, seed_rows, self.prefix)
-        g = generate(self.model, seeds, place_paths(paths, seeds), emotions, self.offsets, self.skeleton.parents,
-                     self.placement)
+        placed = place_paths(paths, seeds)
+        g = generate(self.model, seeds, placed, emotions, self.offsets, self.skeleton.parents, self.placement)
         return GeneratedMotion(g.positions, g.rotations, g.heading,
                                context_positions=torch.from_numpy(self.arrays["positions"][seed_rows, :self.prefix]),
-                               conditioned_phase=g.theta)
+                               conditioned_phase=g.theta, placed_paths=placed)

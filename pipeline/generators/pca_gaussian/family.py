@@ -17,7 +17,8 @@ from pipeline.generators.autoregressive.network import FOOT_JOINTS
 from pipeline.generators.autoregressive.rollout import PlacementConfig
 from pipeline.generators.base import GeneratedMotion
 from pipeline.generators.pca_gaussian.cycles import CycleConfig, Cycles, cut_cycles
-from pipeline.generators.pca_gaussian.model import ModelConfig, PCABasis, balanced_rows, fit_basis, fit_style_models
+from pipeline.generators.pca_gaussian.model import (ModelConfig, PCABasis, balanced_rows, components_for_emotions,
+                                                    fit_basis, fit_style_models)
 from pipeline.generators.pca_gaussian.synthesis import CycleModel, WalkSettings, walk
 from pipeline.io.files import sha256_bytes
 
@@ -26,21 +27,27 @@ NAME = "pca_gaussian"
 
 @dataclass
 class Fit:
-    """A fit: the synthesis model, the basis and the cycles it came from."""
+    """A fit: the synthesis model, the basis and the cycles it came from; ``emotion_feature_errors``: per number
+    of components tried by the emotion-feature rule, each emotion's largest feature error (real SDs)."""
 
     model: CycleModel
     basis: PCABasis
     cycles: Cycles
     components: int
+    emotion_feature_errors: dict[int, list[float]] = field(default_factory=dict)
 
 
 def fit(table: pa.Table, arrays: dict[str, np.ndarray], skeleton: Skeleton, cycle_cfg: CycleConfig = CycleConfig(),
         cfg: ModelConfig = ModelConfig(), annotate: AnnotateConfig = AnnotateConfig()) -> Fit:
-    """Cycles of the train walks, the style-balanced basis, the kept components and the four emotion models; the
-    foot floor is the median over the train walks' frames of their lowest heel/toe point's height."""
+    """Cycles of the train walks, the style-balanced basis, the kept components (enough for ``cfg.variance`` and,
+    where ``cfg.emotion_features_sd`` is set, for the emotions' affective features) and the four emotion models;
+    the foot floor is the median over the train walks' frames of their lowest heel/toe point's height."""
     cycles = cut_cycles(table, arrays, skeleton, cycle_cfg, annotate)
     basis = fit_basis(cycles.flat(), balanced_rows(cycles.style, cfg.per_style, cfg.seed))
-    k = basis.components_for(cfg.variance)
+    k, tried = basis.components_for(cfg.variance), {}
+    if cfg.emotion_features_sd > 0:
+        k, tried = components_for_emotions(cycles.flat(), cycles.dominant(), basis, cfg.emotion_features_sd, k,
+                                           skeleton.offsets, skeleton.parents, cycle_cfg.frames)
     models = fit_style_models(basis.scores(cycles.flat(), k), cycles.durations, cycles.dominant(), cycles.follows,
                               cfg.prior_cycles)
     split = np.array(table.column("split").to_pylist())
@@ -49,20 +56,44 @@ def fit(table: pa.Table, arrays: dict[str, np.ndarray], skeleton: Skeleton, cycl
     floor = float(np.median(arrays["positions"][walks][:, :, list(FOOT_JOINTS), 1].min(-1)))
     model = CycleModel(mean=basis.mean, components=basis.components[:k], models=models, frames=cycle_cfg.frames,
                        joints=cycles.rotvec.shape[2], foot_floor_m=floor)
-    return Fit(model=model, basis=basis, cycles=cycles, components=k)
+    return Fit(model=model, basis=basis, cycles=cycles, components=k, emotion_feature_errors=tried)
 
 
 @dataclass
 class PCAGaussianFamily:
-    """A fitted PCA + Gaussian model, ready for plan rows."""
+    """A fitted PCA + Gaussian model, ready for plan rows; ``fields`` are the model file's other fields
+    (``load_model``), its lineage."""
 
     model: CycleModel
     model_sha256: str
     skeleton: Skeleton
     placement: PlacementConfig
     settings: WalkSettings = WalkSettings()
+    fields: dict[str, Any] = field(default_factory=dict)
     counts: dict[str, int] = field(default_factory=dict)
     name: str = NAME
+    description: str = ("PCA + Gaussian walk cycles (Tilmanne & Dutoit 2010): two-step cycles of real train-split "
+                        "walks in a PCA space, one Gaussian per emotion and component, drawn cycle after cycle and "
+                        "steered along the trajectory; no seed gait")
+    seeded: bool = False
+
+    @classmethod
+    def from_file(cls, path, skeleton: Skeleton, placement: PlacementConfig,
+                  settings: WalkSettings = WalkSettings()) -> PCAGaussianFamily:
+        model, fields, sha = load_model(path)
+        return cls(model, sha, skeleton, placement, settings, fields)
+
+    def lineage(self) -> dict[str, Any]:
+        """The real cycles (clip @ first frame, 30 fps) whose statistics formed each emotion model."""
+        from pipeline.core.emotions import EMOTIONS
+
+        ids, dominant = self.fields.get("cycle_ids", []), self.fields.get("cycle_dominant", [])
+        return {"model_sha256": self.model_sha256, "components": int(self.model.components.shape[0]),
+                "cycles": len(ids),
+                "cycles_per_emotion_model": {e: [c for c, d in zip(ids, dominant) if d == k]
+                                             for k, e in enumerate(EMOTIONS)},
+                "basis_cycles": "every cycle of every style (other styles, unlabelled walks included) may enter the "
+                                "style-balanced basis; see the model file's cycle_ids"}
 
     def generate(self, rows: Sequence[dict[str, Any]], paths: torch.Tensor, emotions: torch.Tensor) -> GeneratedMotion:
         motion, counts = walk(self.model, rows, paths, emotions, torch.from_numpy(self.skeleton.offsets),

@@ -36,7 +36,9 @@ class ModelConfig:
     per_style: int = 15  # basis cycles per style (the paper: 15 per style, 11 styles)
     variance: float = 0.90  # cumulative explained variance the kept components reach
     prior_cycles: float = 5.0  # n₀ of the variance regularisation
-    redraws: int = 5  # draws of a score that jumps too far before it is clamped
+    # and at least as many components as keep every emotion's affective features (the mean over its cycles of each
+    # of the 18) within this many real standard deviations of the cycles themselves (0: variance alone decides)
+    emotion_features_sd: float = 0.0
     seed: int = 0  # the basis draw
 
     @classmethod
@@ -194,6 +196,60 @@ def sample_cycles(models: list[StyleModel], rng: np.random.Generator, redraws: i
     return np.array(scores), np.array(durations), counts, (z_dev, float(d_dev[0]))
 
 
+def _cycle_features(flat: np.ndarray, offsets: np.ndarray, parents: list[int], frames: int) -> np.ndarray:
+    """(N, P) flattened rotation vectors -> (N, 18) affective features averaged over every 2nd of each cycle's
+    frames (root-relative forward kinematics on the canonical skeleton; every 2nd sample halves the cost)."""
+    import torch
+
+    from pipeline.ops.features import affective_features
+    from pipeline.ops.kinematics import canonical_positions
+    from pipeline.ops.quaternion import qexp
+
+    q = qexp(torch.from_numpy(flat.reshape(len(flat), frames, -1, 3)[:, ::2]))
+    positions = canonical_positions(torch.zeros(*q.shape[:2], 3, dtype=q.dtype), q,
+                                    torch.from_numpy(offsets).to(q.dtype), parents)
+    return affective_features(positions).mean(1).numpy()
+
+
+def emotion_feature_errors(x: np.ndarray, dominant: np.ndarray, basis: PCABasis, k: int, offsets: np.ndarray,
+                           parents: list[int], frames: int, real: np.ndarray | None = None) -> np.ndarray:
+    """Per emotion (EMOTIONS order; NaN without cycles): the largest difference over the 18 affective features
+    between the mean over its cycles (N, P) and the mean over their k-component reconstructions, in standard
+    deviations of the labelled cycles' features. What a basis loses of what tells the emotions apart. ``real``:
+    the labelled cycles' features (``_cycle_features``), where already computed."""
+    labelled = dominant >= 0
+    real = _cycle_features(x[labelled], offsets, parents, frames) if real is None else real
+    back = _cycle_features(basis.reconstruct(basis.scores(x[labelled], k)), offsets, parents, frames)
+    sd = np.maximum(real.std(0), 1e-9)
+    d = dominant[labelled]
+    return np.array([np.abs((back[d == e].mean(0) - real[d == e].mean(0)) / sd).max() if (d == e).any() else np.nan
+                     for e in range(len(EMOTIONS))])
+
+
+def components_for_emotions(x: np.ndarray, dominant: np.ndarray, basis: PCABasis, max_sd: float, start: int,
+                            offsets: np.ndarray, parents: list[int], frames: int) -> tuple[int, dict[int, list[float]]]:
+    """The fewest components, from ``start`` on, whose reconstruction keeps every emotion's affective features
+    within ``max_sd`` (``emotion_feature_errors``), found by bisection (the errors shrink with more components,
+    not strictly: the rule takes the bisection's answer), and the errors of every number tried."""
+    tried: dict[int, list[float]] = {}
+    real = _cycle_features(x[dominant >= 0], offsets, parents, frames)
+
+    def ok(k: int) -> bool:
+        errors = emotion_feature_errors(x, dominant, basis, k, offsets, parents, frames, real)
+        tried[k] = [round(float(e), 3) for e in errors]
+        return bool(np.nanmax(errors) <= max_sd)
+
+    low, high = start, len(basis.explained)
+    if not ok(low):
+        while low < high:
+            middle = (low + high) // 2
+            if ok(middle):
+                high = middle
+            else:
+                low = middle + 1
+    return low, dict(sorted(tried.items()))
+
+
 def reconstruction_errors(x: np.ndarray, basis: PCABasis, k: int, offsets: np.ndarray, parents: list[int],
                           frames: int) -> dict[str, float]:
     """How much of the cycles (N, P) flattened rotation vectors survives k components: the mean joint position
@@ -214,3 +270,54 @@ def reconstruction_errors(x: np.ndarray, basis: PCABasis, k: int, offsets: np.nd
     return {"components": int(k), "cumulative_variance": round(float(np.cumsum(basis.explained)[k - 1]), 4),
             "joint_position_error_m": round(float(torch.linalg.vector_norm(p_back - p_true, dim=-1).mean()), 5),
             "rotation_error_deg": round(float(torch.rad2deg(qangle(q_back, q_true)).mean()), 3)}
+
+
+def leave_one_clip_out_reading(scores: np.ndarray, dominant: np.ndarray, clips: np.ndarray) -> dict[str, Any]:
+    """How well the PC scores (C, K) tell the emotions apart: each labelled cycle (``dominant`` >= 0) read as the
+    emotion whose centroid, fitted on the other clips' cycles, is nearest; accuracy, balanced accuracy over the
+    emotions present, the majority baseline and the confusion (rows: true, EMOTIONS order). An emotion whose
+    cycles all come from one clip has no centroid when that clip is left out, so its cycles cannot be read right.
+    """
+    k = len(EMOTIONS)
+    matrix = np.zeros((k, k), dtype=int)
+    labelled = np.flatnonzero(dominant >= 0)
+    for clip in sorted(set(clips[labelled])):
+        mine = labelled[clips[labelled] == clip]
+        others = labelled[clips[labelled] != clip]
+        present = [e for e in range(k) if (dominant[others] == e).any()]
+        centroids = np.stack([scores[others][dominant[others] == e].mean(0) for e in present])
+        nearest = np.linalg.norm(scores[mine][:, None] - centroids[None], axis=-1).argmin(1)
+        for truth, guess in zip(dominant[mine], np.array(present)[nearest]):
+            matrix[truth, guess] += 1
+    rows = matrix.sum(1)
+    recall = [matrix[e, e] / rows[e] for e in range(k) if rows[e]]
+    return {"cycles": int(rows.sum()), "clips": int(len(set(clips[labelled]))),
+            "clips_per_emotion": {name: int(len(set(clips[dominant == e]))) for e, name in enumerate(EMOTIONS)},
+            "accuracy": round(float(np.trace(matrix) / rows.sum()), 4),
+            "balanced_accuracy": round(float(np.mean(recall)), 4),
+            "majority_baseline_accuracy": round(float(rows.max() / rows.sum()), 4),
+            "confusion": matrix.tolist()}
+
+
+def cycle_novelty(models: list[StyleModel], scores: np.ndarray, clips: np.ndarray, per_emotion: int, seed: int,
+                  values_per_cycle: int) -> dict[str, Any]:
+    """Are drawn cycles new? ``per_emotion`` cycles drawn from each emotion model (first cycles of a chain) and
+    the distance from each to its nearest real cycle (scores (C, K) on the same components), beside each real
+    cycle's distance to its nearest real cycle of another clip. Distances are RMS rotation-vector differences per
+    value (degrees; the score space is an orthonormal part of the 40 x 21 x 3 log-map space), and a drawn cycle
+    within 1e-6 of a real one counts as reproduced."""
+    rng = np.random.default_rng(seed)
+    drawn = np.concatenate([m.mean + m.std * rng.standard_normal((per_emotion, len(m.mean))) for m in models])
+    to_real = np.sqrt(((drawn[:, None] - scores[None]) ** 2).sum(-1)).min(1)
+    between = np.sqrt(((scores[:, None] - scores[None]) ** 2).sum(-1))
+    between[clips[:, None] == clips[None]] = np.inf
+    real_nn = between.min(1)
+    real_nn = real_nn[np.isfinite(real_nn)]
+    to_deg = np.degrees(1.0 / np.sqrt(values_per_cycle))
+
+    def spread(d: np.ndarray) -> dict[str, float]:
+        return {q: round(float(np.percentile(d, p) * to_deg), 4) for q, p in (("min", 0), ("p10", 10), ("median", 50),
+                                                                              ("p90", 90))}
+    return {"drawn_cycles": int(len(drawn)), "drawn_to_nearest_real_deg": spread(to_real),
+            "real_to_nearest_real_of_another_clip_deg": spread(real_nn),
+            "reproduced": int((to_real < 1e-6).sum())}

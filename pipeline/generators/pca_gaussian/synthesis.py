@@ -61,6 +61,10 @@ class WalkSettings:
     # change per frame is at most real walks'): 0 s gives 0.094 m/s, 0.1 s 0.062; real 0.092
     root_smoothing_s: float = 0.1
 
+    @classmethod
+    def from_dict(cls, d: dict[str, Any] | None) -> WalkSettings:
+        return cls(**{k: type(getattr(cls, k))(v) for k, v in dict(d or {}).items()})
+
 
 @dataclass
 class CycleModel:
@@ -202,4 +206,4 @@ def walk(model: CycleModel, rows: Sequence[dict[str, Any]], paths: torch.Tensor,
     c = settings.context
     return GeneratedMotion(positions=positions[:, c:], rotations=rotations[:, c:],
                            heading=heading_angle(rotations[:, c:, 0]), context_positions=positions[:, :c],
-                           conditioned_phase=theta[:, c:]), counts
+                           conditioned_phase=theta[:, c:], placed_paths=paths), counts

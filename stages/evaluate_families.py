@@ -17,18 +17,15 @@ import numpy as np
 import torch
 
 from pipeline.core.emotions import EMOTIONS
-from pipeline.core.skeleton import load_skeleton
 from pipeline.evaluation.autoregressive import one_hot_transition
-from pipeline.evaluation.families import AffectReference, family_sensitivity, markdown, sensitivity_rows, side_by_side
-from pipeline.evaluation.families import under_one_hot
-from pipeline.generators.autoregressive.family import AutoregressiveFamily
-from pipeline.generators.pca_gaussian.family import PCAGaussianFamily
+from pipeline.evaluation.families import (AffectReference, family_sensitivity, markdown, sensitivity_rows,
+                                          side_by_side, under_one_hot)
 from pipeline.io.files import write_json, write_text
 from pipeline.io.gait_table import read_gaits
 from pipeline.synth.synthesis import SynthesisConfig, SynthesisPlan, row_inputs
 from pipeline.viz.stick_figures import Motion, render_filmstrip
-from stages.common import REPO, SKELETON, load_params
-from stages.configs import placement_config, walk_settings
+from stages import synthesize, synthesize_pca_gaussian
+from stages.common import REPO, load_params
 
 IN_GAITS = REPO / "data" / "split" / "gaits.parquet"
 REPORTS = REPO / "reports"
@@ -36,14 +33,12 @@ SYNTHESIS_REPORTS = {"autoregressive_affect": "synthesize.json", "pca_gaussian":
 MODEL_REPORTS = {"pca_gaussian": ("pca_gaussian.json", ("emotion_in_pc_space", "novelty"))}
 
 
+BUILDERS = {"autoregressive_affect": synthesize.family, "pca_gaussian": synthesize_pca_gaussian.family}
+
+
 def families(params: dict[str, Any], work: SynthesisPlan) -> dict[str, Any]:
-    skeleton, placement = load_skeleton(SKELETON), placement_config(params)
-    built = {"autoregressive_affect": lambda: AutoregressiveFamily.from_checkpoint(
-                 REPO / "data" / "models" / "full.pt", work.arrays, work.row_of, skeleton, placement,
-                 int(params["train"]["prefix"])),
-             "pca_gaussian": lambda: PCAGaussianFamily.from_file(REPO / "data" / "pca_gaussian" / "model.pt", skeleton,
-                                                                 placement, walk_settings(params))}
-    return {name: built[name]() for name in params["synthesize"]["families"]}
+    """Every family of ``synthesize.families``, built as its synthesis stage builds it."""
+    return {name: BUILDERS[name](params, work) for name in params["synthesize"]["families"]}
 
 
 def main(params_path: Path | None = None, reports: Path = REPORTS) -> dict[str, Any]:

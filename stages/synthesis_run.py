@@ -40,16 +40,16 @@ def run_synthesis(stage: str, params: dict[str, Any], make_family: Callable[[Syn
     cfg = SynthesisConfig.from_dict(params["synthesize"], frames=int(params["ingest"]["window"]))
     work = SynthesisPlan.prepare(*read_gaits(in_gaits), cfg)
     family = make_family(work)
+    annotate = annotate_config(params)
     out = out or SYNTHESIZED / family.name
     out_report = out_report or REPO / "reports" / f"{stage}.json"
     out_plot = out_plot or REPO / "reports" / f"{stage}.png"
     started = time.perf_counter()
     synthetic = synthesize(family, work.plan, work.emotions, {t.id: t for t in work.trajectories}, family.skeleton,
-                           annotate_config(params), cfg,
+                           annotate, cfg,
                            progress=lambda done, total: print(f"{stage}: {done}/{total} gaits", flush=True))
     seconds = time.perf_counter() - started
     fallback = [r["gait_id"] for r, f in zip(work.plan, synthetic.pop("phase_from_condition")) if f]
-    annotate = annotate_config(params)
     recipes = [recipe_json(r["recipe"], work.emotions) for r in work.plan]
     entry = generator_entry(family.name, family.description, family.model_sha256, family.seeded)
     named = str(params["synthesize"]["named_family"])

@@ -11,6 +11,7 @@ from typing import Any
 
 from pipeline.core.skeleton import load_skeleton
 from pipeline.generators.autoregressive.family import AutoregressiveFamily
+from pipeline.synth.synthesis import SynthesisPlan
 from stages.common import REPO, SKELETON, load_params
 from stages.configs import placement_config
 from stages.synthesis_run import IN_GAITS, run_synthesis
@@ -18,12 +19,17 @@ from stages.synthesis_run import IN_GAITS, run_synthesis
 IN_MODEL = REPO / "data" / "models" / "full.pt"
 
 
+def family(params: dict[str, Any], work: SynthesisPlan, in_model: Path = IN_MODEL) -> AutoregressiveFamily:
+    """The trained network, its seeds from the plan's split gaits."""
+    return AutoregressiveFamily.from_checkpoint(in_model, work.arrays, work.row_of, load_skeleton(SKELETON),
+                                                placement_config(params), int(params["train"]["prefix"]))
+
+
 def main(params_path: Path | None = None, in_gaits: Path = IN_GAITS, in_model: Path = IN_MODEL,
          out: Path | None = None, out_report: Path | None = None, out_plot: Path | None = None) -> dict[str, Any]:
     params = load_params(params_path) if params_path else load_params()
-    return run_synthesis("synthesize", params, lambda work: AutoregressiveFamily.from_checkpoint(
-        in_model, work.arrays, work.row_of, load_skeleton(SKELETON), placement_config(params),
-        int(params["train"]["prefix"])), in_gaits, out, out_report, out_plot)
+    return run_synthesis("synthesize", params, lambda work: family(params, work, in_model), in_gaits, out,
+                         out_report, out_plot)
 
 
 if __name__ == "__main__":

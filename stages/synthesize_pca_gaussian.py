@@ -11,6 +11,7 @@ from typing import Any
 
 from pipeline.core.skeleton import load_skeleton
 from pipeline.generators.pca_gaussian.family import PCAGaussianFamily
+from pipeline.synth.synthesis import SynthesisPlan
 from stages.common import REPO, SKELETON, load_params
 from stages.configs import placement_config, walk_settings
 from stages.synthesis_run import IN_GAITS, run_synthesis
@@ -18,12 +19,17 @@ from stages.synthesis_run import IN_GAITS, run_synthesis
 IN_MODEL = REPO / "data" / "pca_gaussian" / "model.pt"
 
 
+def family(params: dict[str, Any], work: SynthesisPlan | None = None, in_model: Path = IN_MODEL) -> PCAGaussianFamily:
+    """The fitted model (it needs no seeds, so not the plan's gaits)."""
+    return PCAGaussianFamily.from_file(in_model, load_skeleton(SKELETON), placement_config(params),
+                                       walk_settings(params))
+
+
 def main(params_path: Path | None = None, in_gaits: Path = IN_GAITS, in_model: Path = IN_MODEL,
          out: Path | None = None, out_report: Path | None = None, out_plot: Path | None = None) -> dict[str, Any]:
     params = load_params(params_path) if params_path else load_params()
-    return run_synthesis("synthesize_pca_gaussian", params, lambda work: PCAGaussianFamily.from_file(
-        in_model, load_skeleton(SKELETON), placement_config(params), walk_settings(params)),
-        in_gaits, out, out_report, out_plot)
+    return run_synthesis("synthesize_pca_gaussian", params, lambda work: family(params, work, in_model), in_gaits,
+                         out, out_report, out_plot)
 
 
 if __name__ == "__main__":

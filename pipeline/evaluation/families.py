@@ -86,7 +86,7 @@ def side_by_side(families: Sequence[str], synthesis: dict[str, dict[str, Any]], 
     """One entry per family from its synthesis report, the audit, the condition sensitivity and its own model
     figures; and the real reference beside them."""
     memo = audit.get("memorisation", {})
-    out: dict[str, Any] = {"families": {}, "real": {}}
+    out: dict[str, Any] = {"families": {}}
     for name in families:
         s = synthesis[name]
         out["families"][name] = {
@@ -101,10 +101,11 @@ def side_by_side(families: Sequence[str], synthesis: dict[str, dict[str, Any]], 
                                                                                          memo.get("synthetic", {}).get("median")),
             "copied_real_frames": s["copied_real_frames"],
             **({"model": model_figures[name]} if name in model_figures else {})}
-        out["real"] = {"cycle_frames": s["cycle_frames"]["real_labelled_train_walks"],
-                       "speed_m_s": {e: v["path_speed_m_s"] for e, v in s["walking"]["real_labelled_train_walks"].items()},
-                       "foot_skating_m_s": s["foot_skating"]["real_walks_m_s"],
-                       "nearest_train_window_median_m": memo.get("real_held_out", {}).get("median")}
+    s = synthesis[families[0]]  # the real reference is the same in every family's report
+    out["real"] = {"cycle_frames": s["cycle_frames"]["real_labelled_train_walks"],
+                   "speed_m_s": {e: v["path_speed_m_s"] for e, v in s["walking"]["real_labelled_train_walks"].items()},
+                   "foot_skating_m_s": s["foot_skating"]["real_walks_m_s"],
+                   "nearest_train_window_median_m": memo.get("real_held_out", {}).get("median")}
     return out
 
 

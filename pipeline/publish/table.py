@@ -122,10 +122,6 @@ def published_parts(real: pa.Table, families: Sequence[pa.Table]) -> list[tuple[
     return [(name, with_schema_meta(t.combine_chunks(), meta)) for name, t in parts]
 
 
-def published_table(real: pa.Table, families: Sequence[pa.Table]) -> pa.Table:
-    """Real gaits then each family's synthetic gaits, one schema (``published_parts``)."""
-    return pa.concat_tables([t for _, t in published_parts(real, families)]).combine_chunks()
-
 
 COLUMN_DESCRIPTIONS = descriptions(PUBLISHED)
 

@@ -1,5 +1,6 @@
 """Synthesis of the 5,000-row plan by every generator family (issue 12: goal ≤ 60 s each, annotation included, on
-2 cores): each family's DVC stage (`synthesize`, `synthesize_pca_gaussian`) run into a scratch directory and
+2 cores): each family's DVC stage (`synthesize`, `synthesize_pca_gaussian`,
+`synthesize_motion_graph`) run into a scratch directory and
 timed, with the figures of its report that say what was made.
 
 Printed as JSON and written to benchmarks/out/synthesize_families.json.
@@ -19,10 +20,12 @@ sys.path.insert(0, str(REPO))
 
 from pipeline.io.files import write_json  # noqa: E402
 from stages.synthesize import main as autoregressive_stage  # noqa: E402
+from stages.synthesize_motion_graph import main as motion_graph_stage  # noqa: E402
 from stages.synthesize_pca_gaussian import main as pca_gaussian_stage  # noqa: E402
 
 OUT = REPO / "benchmarks" / "out" / "synthesize_families.json"
-STAGES = {"autoregressive_affect": autoregressive_stage, "pca_gaussian": pca_gaussian_stage}
+STAGES = {"autoregressive_affect": autoregressive_stage, "pca_gaussian": pca_gaussian_stage,
+          "motion_graph": motion_graph_stage}
 
 
 def main() -> dict:

@@ -12,6 +12,8 @@ if TYPE_CHECKING:
     from pipeline.annotate.annotation import AnnotateConfig
     from pipeline.annotate.contact_validation import ValidationConfig
     from pipeline.generators.autoregressive.rollout import PlacementConfig
+    from pipeline.generators.motion_graph.family import WalkConfig
+    from pipeline.generators.motion_graph.search import SearchConfig
     from pipeline.generators.pca_gaussian.synthesis import WalkSettings
     from pipeline.ingest.run import IngestConfig
     from pipeline.ops.contacts import ContactConfig
@@ -56,3 +58,16 @@ def validation_config(params: dict[str, Any]) -> ValidationConfig:
     from pipeline.annotate.contact_validation import ValidationConfig
 
     return ValidationConfig(**{k: float(v) for k, v in (params.get("validate_contacts") or {}).items()})
+
+
+def motion_graph_settings(params: dict[str, Any], **search: Any) -> tuple[SearchConfig, WalkConfig]:
+    """The motion graph family's search and walk settings (``motion_graph.search``, ``.walk``); ``search``
+    overrides (e.g. ``emotion=False`` for the ablation)."""
+    import dataclasses
+
+    from pipeline.generators.motion_graph.family import WalkConfig
+    from pipeline.generators.motion_graph.search import SearchConfig
+
+    p = params.get("motion_graph") or {}
+    return (dataclasses.replace(SearchConfig.from_dict(p.get("search")), **search),
+            WalkConfig.from_dict(p.get("walk")))

@@ -51,7 +51,8 @@ def run_synthesis(stage: str, params: dict[str, Any], make_family: Callable[[Syn
     seconds = time.perf_counter() - started
     fallback = [r["gait_id"] for r, f in zip(work.plan, synthetic.pop("phase_from_condition")) if f]
     recipes = [recipe_json(r["recipe"], work.emotions) for r in work.plan]
-    entry = generator_entry(family.name, family.description, family.model_sha256, family.seeded)
+    entry = generator_entry(family.name, family.description, family.model_sha256, family.seeded,
+                            getattr(family, "extra_lineage", ()))
     named = str(params["synthesize"]["named_family"])
     write_parquet(synthetic_table(work.plan, recipes, synthetic, entry, work.table, named), out / "gaits.parquet")
     write_csv(PLAN_COLUMNS, plan_rows(work.plan, recipes), out / "plan.csv")
@@ -61,8 +62,10 @@ def run_synthesis(stage: str, params: dict[str, Any], make_family: Callable[[Syn
                                  fallback, seeded=family.seeded, contacts=annotate.contacts)}
     if counts := getattr(family, "counts", None):
         report["generator_counts"] = dict(sorted(counts.items()))
+    if hasattr(family, "report"):
+        report.update(family.report())
     write_json(report, out_report)
-    render_trajectories(placed_root_paths(work, synthetic["root_path"]), out_plot)
+    render_trajectories(placed_root_paths(work, synthetic["root_path"], synthetic.get("piece_placement")), out_plot)
     skating = report["foot_skating"]
     print(f"{stage}: foot skating {skating['ratio_to_real']:.2f}x real, path deviation "
           f"{report['path_deviation_m']['all']['mean']:.3f} m (mean)")

@@ -64,7 +64,8 @@ def test_dvc_repro_runs_every_stage_then_is_a_noop(tmp_path):
     before = _digests(published)
     # Rerun what makes the published files: every byte the same, provenance.json and SHA256SUMS included (they
     # carry the md5 of every stage output in dvc.lock, so no output may hold a timing).
-    for stage in ("train", "synthesize", "fit_pca_gaussian", "synthesize_pca_gaussian", "publish"):
+    for stage in ("train", "synthesize", "fit_pca_gaussian", "synthesize_pca_gaussian", "fit_motion_graph",
+                  "synthesize_motion_graph", "publish"):
         _run(dvc + ["repro", "-f", "-s", stage], work, env)
     assert _digests(published) == before
     assert "up to date" in _run(dvc + ["status"], work, env).stdout
@@ -93,7 +94,8 @@ def check_published(published: Path, work: Path) -> None:
     assert validate.returncode == 0, validate.stderr[-2000:]
     frame = load_dataframe(published)
     everything = frame[frame["kind"] == "synthetic"]
-    assert everything["generator"].value_counts().to_dict() == {"autoregressive_affect": 5000, "pca_gaussian": 5000}
+    families = {"autoregressive_affect": 5000, "pca_gaussian": 5000, "motion_graph": 5000}
+    assert everything["generator"].value_counts().to_dict() == families
     assert (frame["kind"] == "real").sum() > 1000 and frame.loc[frame["kind"] == "real", "generator"].isna().all()
     for name, family in everything.groupby("generator"):
         emotions = np.stack(family["emotion"].to_numpy())
@@ -107,8 +109,18 @@ def check_published(published: Path, work: Path) -> None:
     other = everything[everything["generator"] == "pca_gaussian"]
     assert [g.replace("syn-pca_gaussian-", "syn-") for g in other["gait_id"]] == list(synthetic["gait_id"])
     assert other["seed_gait_id"].isna().all() and synthetic["seed_gait_id"].notna().all()
+    graph = everything[everything["generator"] == "motion_graph"]
+    assert [g.replace("syn-motion_graph-", "syn-") for g in graph["gait_id"]] == list(synthetic["gait_id"])
+    # a motion-graph gait names the real frames it plays: 60 of them, of train-split clips
+    assert graph["source_segments"].notna().all() and everything.loc[everything["generator"] != "motion_graph",
+                                                                      "source_segments"].isna().all()
+    train_clips = set(frame.loc[(frame["kind"] == "real") & (frame["split"] == "train"), "source_file"])
+    for segments in graph["source_segments"].iloc[::500]:
+        runs = json.loads(segments)
+        assert sum(last - first + 1 for _, first, last in runs) == 60
     generators = json.loads((published / "generators.json").read_text())
-    assert {k: v["gaits"] for k, v in generators.items()} == {"autoregressive_affect": 5000, "pca_gaussian": 5000}
+    assert {k: v["gaits"] for k, v in generators.items()} == families
+    assert "source_segments" in generators["motion_graph"]["lineage"] and train_clips
     cycles = generators["pca_gaussian"]["model_lineage"]["cycles_per_emotion_model"]
     assert all(cycles[e] for e in ("happy", "sad", "angry", "neutral"))
     check_hugging_face(published, frame, work / "hf_cache")
@@ -124,7 +136,7 @@ def check_published(published: Path, work: Path) -> None:
     assert np.array_equal(positions[0], np.asarray(frame["positions"].iloc[0]))
     (count,), = duckdb.sql(f"select count(*) from read_parquet('{published}/gaits-*.parquet') "
                            "where kind = 'synthetic'").fetchall()
-    assert count == 10000
+    assert count == 15000
     with h5py.File(published / "gaits.h5") as h5:
         assert h5["positions"].shape == (len(frame), 60, 21, 3) and h5["rotations"].shape == (len(frame), 60, 21, 4)
         assert h5["emotion_per_frame"].shape == (len(frame), 60, 4)
@@ -144,13 +156,19 @@ def check_published(published: Path, work: Path) -> None:
         read_back = _bvh_positions(work / "bvh" / bvh_file_name(gait_id), load_skeleton(SKELETON)).numpy()
         stored = frame.loc[frame["gait_id"] == gait_id, "positions"].iloc[0]
         assert np.linalg.norm(read_back - stored, axis=-1).max() < TOLERANCE_M, gait_id
-    for stage in ("synthesize", "synthesize_pca_gaussian"):
+    for stage in ("synthesize", "synthesize_pca_gaussian", "synthesize_motion_graph"):
         report = json.loads((work / f"reports/{stage}.json").read_text())
-        assert report["gaits"] == 5000 and report["copied_real_frames"] == 0 and report["finite"], stage
+        assert report["gaits"] == 5000 and report["finite"], stage
+        # the motion graph's frames are real frames, blended only near its transitions: copies by design
+        if stage == "synthesize_motion_graph":
+            assert report["real_frames_by_design"]["share"] > 0.5 and report["search"]["gaits"] == 5000
+        else:
+            assert report["copied_real_frames"] == 0, stage
         assert report["emotion_novelty"]["passed"] and report["trajectory_novelty"]["passed"], stage
         assert set(report["walking"]["synthetic"]) == {"happy", "sad", "angry", "neutral"}, stage
     previews = {p.name for p in (published / "previews").glob("*.png")}
-    assert {"emotions.png", "transition.png", "emotions_pca_gaussian.png", "transition_pca_gaussian.png"} <= previews
+    assert {"emotions.png", "transition.png", "emotions_pca_gaussian.png", "transition_pca_gaussian.png",
+            "emotions_motion_graph.png", "transition_motion_graph.png"} <= previews
 
 
 def check_hugging_face(published: Path, frame, cache: Path) -> None:
@@ -165,9 +183,9 @@ def check_hugging_face(published: Path, frame, cache: Path) -> None:
     assert card.startswith("---\n")
     header = yaml.safe_load(card.split("---\n")[1])
     configs = {c["config_name"]: c for c in header["configs"]}
-    assert set(configs) == {"autoregressive_affect", "pca_gaussian", "real", "all"}
+    assert set(configs) == {"autoregressive_affect", "pca_gaussian", "motion_graph", "real", "all"}
     assert configs["autoregressive_affect"].get("default") is True
-    for name, expected in (("pca_gaussian", 5000), ("real", int((frame["kind"] == "real").sum()))):
+    for name, expected in (("motion_graph", 5000), ("real", int((frame["kind"] == "real").sum()))):
         files = sorted(published.glob(configs[name]["data_files"][0]["path"]))
         ds = datasets.load_dataset("parquet", data_files=[str(f) for f in files], split="train",
                                    cache_dir=str(cache))
@@ -182,7 +200,7 @@ def check_audit(reports: Path, published: Path, tmp_path: Path) -> None:
     from stages.cli import main as emogait
 
     metrics = json.loads((reports / "metrics.json").read_text())
-    assert metrics["problem_count"] == 0 and metrics["kinds"]["synthetic"] == 10000
+    assert metrics["problem_count"] == 0 and metrics["kinds"]["synthetic"] == 15000
     recognition = metrics["recognisability"]
     assert set(recognition["by_recogniser"]) == {"summary_mlp", "temporal_cnn"}
     for kind, figures in recognition["by_recogniser"].items():

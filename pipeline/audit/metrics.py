@@ -44,7 +44,7 @@ from pipeline.recognition import (
 
 COLUMNS = ("gait_id", "kind", "split", "source", "label_method", "generator", "emotion", "emotion_per_frame",
            "contacts", "phase", "positions", "heading", "affective", "movement", "source_file", "source_sha256", "t_start", "t_end",
-           "checkpoint_sha256", "seed_gait_id", "trajectory_id", "emotion_recipe", "plan_seed")
+           "checkpoint_sha256", "seed_gait_id", "trajectory_id", "emotion_recipe", "plan_seed", "source_segments")
 LINEAGE = {"real": ("source_file", "source_sha256", "t_start", "t_end"),
            "synthetic": ("checkpoint_sha256", "seed_gait_id", "trajectory_id", "emotion_recipe")}
 UNLABELLED = "unlabelled"

@@ -86,6 +86,10 @@ COLUMNS = {c.name: c for c in (
     Column("emotion_recipe", "string", "synthetic gaits: JSON recipe (single emotion or transition from/to, with "
                                        "vectors)"),
     Column("plan_seed", "int64", "synthetic gaits: the plan row's random seed (draws its seed gait)"),
+    Column("source_segments", "string", "synthetic gaits of a family that re-sequences real motion (motion_graph): "
+                                        "JSON list of [clip_id, first frame, last frame] (frames of the rebuilt "
+                                        "real clip at the gaits' rate), in the order the gait plays them; null "
+                                        "for other families"),
 )}
 
 # The tables, column order as stored.
@@ -96,7 +100,7 @@ ANNOTATIONS = ("contacts", "phase", "phase_rate", "affective", "movement")  # ad
 PUBLISHED = ("gait_id", "kind", "generator", "split", "source", "content", "label_method", "emotion", "emotion_per_frame",
              "positions", "rotations", "root_path", "heading", *ANNOTATIONS, "source_file", "source_sha256",
              "t_start", "t_end", "checkpoint_sha256", "seed_gait_id", "trajectory_id", "trajectory_family",
-             "emotion_recipe", "plan_seed")
+             "emotion_recipe", "plan_seed", "source_segments")
 
 
 def columns(names: tuple[str, ...]) -> list[Column]:

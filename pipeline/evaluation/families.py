@@ -94,12 +94,14 @@ def side_by_side(families: Sequence[str], synthesis: dict[str, dict[str, Any]], 
             "recognition": _recognition(audit, name),
             "condition_sensitivity": sensitivity[name],
             "foot_skating_ratio_to_real": s["foot_skating"]["ratio_to_real"],
+            "foot_skating_per_trajectory_family": s["foot_skating"].get("ratio_to_real_per_trajectory_family", {}),
             "path_deviation_m": s["path_deviation_m"],
             "cycle_frames": s["cycle_frames"]["synthetic_single_emotion"],
             "speed_m_s": {e: v["path_speed_m_s"] for e, v in s["walking"]["synthetic"].items()},
             "nearest_train_window_median_m": memo.get("families", {}).get(name, {}).get("median",
                                                                                          memo.get("synthetic", {}).get("median")),
             "copied_real_frames": s["copied_real_frames"],
+            "real_frames_by_design_share": s.get("real_frames_by_design", {}).get("share", 0.0),
             **({"model": model_figures[name]} if name in model_figures else {})}
     s = synthesis[families[0]]  # the real reference is the same in every family's report
     out["real"] = {"cycle_frames": s["cycle_frames"]["real_labelled_train_walks"],
@@ -153,18 +155,32 @@ def markdown(report: dict[str, Any]) -> str:
             [f"{f['cycle_frames'].get(e, float('nan')):.1f} / {f['speed_m_s'].get(e, float('nan')):.2f}"
              for f in fams.values()],
             f"{real['cycle_frames'].get(e, float('nan')):.1f} / {real['speed_m_s'].get(e, float('nan')):.2f}")
-    row("copied real frames", [str(f["copied_real_frames"]) for f in fams.values()])
+    row("copied real frames (20 non-root rotations equal a real frame's)",
+        [str(f["copied_real_frames"]) for f in fams.values()])
+    row("frames that play a real frame as it is, by design (share)",
+        [f"{f['real_frames_by_design_share']:.2f}" for f in fams.values()])
     lines = ["# Generator families side by side", "",
              "Every family generated the same 5,000 plan rows. Recognisability and augmentation: the audit's "
              "independent recognisers (trained on real train gaits only, never in a generator's loss), mean over "
              "seeds with 95 % intervals resampling clips. Real: labelled real gaits (walks of the train split for "
              "cycles and speeds, held-out val + test clips for recognition and nearest windows).", "", *rows, "",
-             "## Path deviation per trajectory family (mean m)", "",
+             "## Per trajectory family: path deviation (mean m, × real sway) / foot skating (× real)", "",
              "| trajectory family | " + " | ".join(f"`{n}`" for n in names) + " |",
              "|---|" + "---|" * len(names)]
-    families_of_paths = sorted(k for k in next(iter(fams.values()))["path_deviation_m"] if k != "all")
-    for t in families_of_paths:
-        lines.append(f"| {t} | " + " | ".join(f"{f['path_deviation_m'][t]['mean']:.3f}" for f in fams.values()) + " |")
+    first = next(iter(fams.values()))["path_deviation_m"]
+    for t in sorted(k for k in first if k not in ("all", "real_walk_sway_m")):
+        cells = []
+        for f in fams.values():
+            d = f["path_deviation_m"][t]
+            skating = f.get("foot_skating_per_trajectory_family", {}).get(t)
+            cells.append(f"{d['mean']:.3f} ({d['ratio_to_real_sway']:.1f}×)" if "ratio_to_real_sway" in d else
+                         f"{d['mean']:.3f}")
+            cells[-1] += f" / {skating:.2f}" if skating is not None else ""
+        lines.append(f"| {t} | " + " | ".join(cells) + " |")
+    if "real_walk_sway_m" in first:
+        lines += ["", f"Real reference of path deviation: real labelled train walks' roots lie a mean "
+                      f"{first['real_walk_sway_m']['mean']:.3f} m from their own path averaged over 1 s (about one "
+                      "stride); a root that follows its path perfectly still sways this much around it."]
     for name, f in fams.items():
         if "model" not in f:
             continue
@@ -182,4 +198,73 @@ def markdown(report: dict[str, Any]) -> str:
                          f"{n['drawn_to_nearest_real_deg']['median']:.2f}° (RMS per value) from their nearest real "
                          f"cycle, real cycles {n['real_to_nearest_real_of_another_clip_deg']['median']:.2f}° from the "
                          f"nearest of another clip; reproduced cycles: {n['reproduced']}.")
+        if "table" in m:
+            lines += ["", "| k | threshold (Johnson SB / empirical) | states before → after SCC | edges before → "
+                          "after SCC |", "|---|---|---|---|"]
+            for t in m["table"]:
+                lines.append(f"| {t['k']} | {t['threshold']['johnson_sb']:.3f} / {t['threshold']['empirical']:.3f} | "
+                             f"{t['before_scc']['states']:,} → {t['after_scc']['states']:,} | "
+                             f"{t['before_scc']['edges']:,} → {t['after_scc']['edges']:,} |")
+            lines += ["", f"- Key states (foot events): {100 * m['key_state_share']:.1f} % of the states (paper: "
+                          "22.25 %). Nodes per emotion after the SCC: " + ", ".join(
+                              f"{e} {v['after_scc']} ({v['clips']} clips)" for e, v in m["nodes_per_emotion"].items())
+                      + "."]
+        if "search" in m:
+            sr = m["search"]
+            lines.append(f"- Search: {100 * sr['success_rate']:.1f} % of the 5,000 rows found with every constraint "
+                         f"(paper: 69.8 %); levels {sr['levels']}. Per trajectory family: " + ", ".join(
+                             f"{k} {100 * v['success_rate']:.0f} %" for k, v in sr["per_trajectory_family"].items())
+                         + "; per starting emotion: " + ", ".join(
+                             f"{k} {100 * v['success_rate']:.0f} %" for k, v in sr["per_emotion"].items()) + ".")
+            runs = m["longest_unbroken_real_segment_frames"]
+            lines.append(f"- Re-sequenced real motion: {m['synthetic_transitions_per_gait']:.2f} synthetic "
+                         f"transitions per gait; the longest unbroken real segment of a gait is a median "
+                         f"{runs['median']:.0f} of 60 frames ({100 * runs['whole_gait_share']:.1f} % of the gaits are "
+                         f"one real segment); yaw warp {m['warp_deg_per_frame']['mean']:.2f}°/frame (mean); "
+                         f"{100 * m['frames_of_planned_dominant_emotion']:.1f} % of the frames walk the planned "
+                         "dominant emotion.")
+    if "motion_graph_ablation" in report:
+        a = report["motion_graph_ablation"]
+        lines += ["", f"## `motion_graph`: the search's constraints (paper Fig. 6; {a['rows']} single-emotion rows, "
+                      f"read by the {a['recogniser']})", "",
+                  "| constraints | balanced accuracy | path deviation (m) | foot skating (× real) |", "|---|---|---|---|"]
+        for variant, v in a["variants"].items():
+            lines.append(f"| {variant} | {v['balanced_accuracy']:.3f} | {v['path_deviation_m']:.3f} | "
+                         f"{v['foot_skating_ratio_to_real']:.2f} |")
     return "\n".join(lines) + "\n"
+
+
+ABLATIONS = {"all constraints": {}, "no emotion constraint": {"emotion": False},
+             "no trajectory constraint": {"trajectory": False},
+             "none": {"emotion": False, "trajectory": False}}
+
+
+def constraint_ablation(make_family, rows: Sequence[dict[str, Any]], emotions: np.ndarray,
+                        trajectories: dict[str, Trajectory], cfg: SynthesisConfig, recogniser, features,
+                        real_positions: np.ndarray, fps: float, contacts) -> dict[str, Any]:
+    """A search family's constraints switched off in turn (paper Fig. 6: all / no emotion / no trajectory / none),
+    each variant generating the same single-emotion ``rows``: balanced accuracy of the dominant emotion by
+    ``recogniser`` (fitted on real train gaits only), path deviation and foot skating vs real walks.
+
+    make_family(**search overrides) -> a family; features(positions, rotations) -> (affective, movement)."""
+    from pipeline.ops.geometry import distance_to_polyline
+    from pipeline.recognition import RecognitionInputs, confusion, scores
+    from pipeline.synth.synthesis import foot_skating
+
+    shapes, per_frame = row_inputs(rows, emotions, trajectories, cfg)
+    intended = per_frame.mean(1).argmax(-1)
+    out = {}
+    for name, overrides in ABLATIONS.items():
+        g = make_family(**overrides).generate(rows, shapes, torch.from_numpy(per_frame.astype(np.float32)))
+        affective, movement = features(g.positions.double(), g.rotations.double())
+        inputs = RecognitionInputs(positions=g.positions.numpy().astype(np.float32),
+                                   heading=g.heading.numpy().astype(np.float32),
+                                   affective=affective.astype(np.float32), movement=movement.astype(np.float32))
+        predicted = recogniser.predict(inputs)
+        deviation = distance_to_polyline(g.positions[:, :, 0, [0, 2]], g.placed_paths).mean(-1)
+        out[name] = {"balanced_accuracy": round(scores(confusion(intended, predicted, len(EMOTIONS)))
+                                                ["balanced_accuracy"], 4),
+                     "path_deviation_m": round(float(deviation.mean()), 4),
+                     "foot_skating_ratio_to_real": foot_skating(g.positions.numpy(), real_positions, fps,
+                                                                contacts)["ratio_to_real"]}
+    return {"rows": len(rows), "recogniser": recogniser.kind, "variants": out}

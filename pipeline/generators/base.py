@@ -14,6 +14,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+import numpy as np
+import pyarrow as pa
 import torch
 
 
@@ -35,6 +37,8 @@ class GeneratedMotion:
     context_positions: torch.Tensor | None = None
     conditioned_phase: torch.Tensor | None = None
     placed_paths: torch.Tensor | None = None
+    source_segments: list[str] | None = None  # per gait, JSON: the real frames it was assembled from (a family
+                                              # that re-sequences real motion; published as source_segments)
 
 
 class GeneratorFamily(Protocol):
@@ -56,3 +60,33 @@ class GeneratorFamily(Protocol):
         piece as ground (x, z) in its own start frame (from (0, 0) towards +z), which the family places in the
         world where its gait starts; emotions (N, T, 4): the condition per frame, rows summing to 1."""
         ...
+
+
+@dataclass
+class TrainClips:
+    """The clips a family is fitted on, rebuilt from their overlapping windows: per clip id its positions
+    (T, 21, 3), local rotations (T, 21, 4) and heading (T,), and the split table's row of its first window."""
+
+    positions: dict[str, np.ndarray]
+    rotations: dict[str, np.ndarray]
+    heading: dict[str, np.ndarray]
+    first_row: dict[str, int]
+
+
+def train_clips(table: pa.Table, arrays: dict[str, np.ndarray], split: str, contents: Sequence[str],
+                fps: float) -> TrainClips:
+    """The clips of ``split`` whose content is one of ``contents``, of a split gait table (``io.gait_table``)."""
+    from pipeline.annotate.annotation import rebuild_clips
+
+    splits = np.array(table.column("split").to_pylist())
+    content = np.array(table.column("content").to_pylist())
+    rows = np.flatnonzero((splits == split) & np.isin(content, list(contents)))
+    clip_ids = [table.column("clip_id")[int(r)].as_py() for r in rows]
+    window = arrays["positions"].shape[1]
+    starts = np.round(table.column("t_start").to_numpy()[rows] * fps).astype(int)
+    positions = rebuild_clips(clip_ids, starts, arrays["positions"][rows], window)
+    rotations = rebuild_clips(clip_ids, starts, arrays["rotations"][rows], window)
+    heading = rebuild_clips(clip_ids, starts, arrays["heading"][rows], window)
+    return TrainClips({c: p for c, (p, _) in positions.items()}, {c: r for c, (r, _) in rotations.items()},
+                      {c: h for c, (h, _) in heading.items()},
+                      {c: int(rows[members[0][0]]) for c, (_, members) in positions.items()})

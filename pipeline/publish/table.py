@@ -7,7 +7,8 @@ Columns, one row per gait:
     phase_rate, affective, movement (as in the annotated table);
     lineage of real gaits: source_file, source_sha256, t_start, t_end (seconds in the source clip);
     lineage of synthetic gaits: generator (the family), checkpoint_sha256 (its model file), seed_gait_id (seeded
-    families), trajectory_id, trajectory_family, emotion_recipe (JSON), plan_seed.
+    families), trajectory_id, trajectory_family, emotion_recipe (JSON), plan_seed, source_segments (families that
+    re-sequence real frames).
 
 Every family generates the same plan rows; the named dataset's family (``publish.named_family``) keeps the plan's
 gait ids, another family's ids carry its name (``family_gait_id``) so that ids stay unique side by side.
@@ -77,17 +78,21 @@ def synthetic_table(plan: Sequence[dict[str, Any]], recipes: Sequence[str], arra
                "trajectory_id": [r["trajectory_id"] for r in plan],
                "trajectory_family": [r["trajectory_family"] for r in plan], "emotion_recipe": list(recipes),
                "plan_seed": [int(r["plan_seed"]) for r in plan]}
+    if "source_segments" in generator["lineage"]:
+        scalars["source_segments"] = [str(s) for s in arrays["source_segments"]]
     table = pa.table(_columns(n, scalars, arrays, {}))
     meta = _meta(schema_meta(real.schema), arrays, real)
     meta["generators"] = {name: generator}
     return with_schema_meta(table, meta)
 
 
-def generator_entry(name: str, description: str, model_sha256: str, seeded: bool) -> dict[str, Any]:
+def generator_entry(name: str, description: str, model_sha256: str, seeded: bool,
+                    extra_lineage: Sequence[str] = ()) -> dict[str, Any]:
     """A family's entry of the published metadata's ``generators``, and the synthetic lineage its gaits must
-    carry (the audit checks it: a seeded family's gaits name their seed)."""
+    carry (the audit checks it: a seeded family's gaits name their seed; a family that re-sequences real motion
+    names the real frames, ``extra_lineage``)."""
     lineage = ["generator", "checkpoint_sha256", *(["seed_gait_id"] if seeded else []), "trajectory_id",
-               "emotion_recipe", "plan_seed"]
+               "emotion_recipe", "plan_seed", *extra_lineage]
     return {"name": name, "description": description, "model_sha256": model_sha256, "seeded": bool(seeded),
             "lineage": lineage}
 

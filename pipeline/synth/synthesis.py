@@ -25,7 +25,7 @@ from pipeline.generators.base import GeneratorFamily
 from pipeline.ops.contacts import ContactConfig, phase_rate
 from pipeline.ops.features import movement_features, pose_affective_features
 from pipeline.ops.footlock import skating_speed
-from pipeline.ops.geometry import distance_to_polyline
+from pipeline.ops.geometry import distance_to_polyline, moving_average, odd_frames
 from pipeline.synth.novelty import (
     distinct_labels,
     l1_to_labels,
@@ -129,8 +129,12 @@ def synthesize(family: GeneratorFamily, plan: Sequence[dict[str, Any]], emotions
                      emotion_per_frame=per_frame, emotion=per_frame.mean(1),  # rows sum to 1
                      path_deviation_m=np.full(len(rows), np.nan) if g.placed_paths is None else
                      distance_to_polyline(g.positions[:, :, 0, [0, 2]], g.placed_paths).mean(-1).numpy())
+        if g.source_segments is not None:
+            batch["source_segments"] = np.array(g.source_segments, dtype=object)
+        if g.placed_paths is not None:
+            batch["piece_placement"] = piece_placement(shapes.double(), g.placed_paths.double())
         for k, v in batch.items():
-            parts.setdefault(k, []).append(v if v.dtype == bool else np.asarray(v, dtype=np.float32))
+            parts.setdefault(k, []).append(v if v.dtype in (bool, object) else np.asarray(v, dtype=np.float32))
         if progress:
             progress(first + len(rows), len(plan))
     return {k: np.concatenate(v) for k, v in parts.items()}
@@ -259,11 +263,14 @@ def synthesis_report(work: SynthesisPlan, synthetic: dict[str, np.ndarray], cfg:
                                                                   synthetic["emotion"][single]),
                          "real_labelled_train_walks": cycle_frames(arrays["phase_rate"][walks], arrays["emotion"][walks]),
                          "how": "per dominant emotion, median over gaits of 2π / the gait's mean phase rate"},
-        "path_deviation_m": path_deviation(synthetic["path_deviation_m"], [r["trajectory_family"] for r in plan]),
-        **({"foot_skating": foot_skating(synthetic["positions"], arrays["positions"][walks], fps, contacts)}
+        "path_deviation_m": path_deviation(synthetic["path_deviation_m"], [r["trajectory_family"] for r in plan],
+                                           root_sway(arrays["root_path"][walks], fps)),
+        **({"foot_skating": foot_skating(synthetic["positions"], arrays["positions"][walks], fps, contacts,
+                                         [r["trajectory_family"] for r in plan])}
            if contacts is not None else {}),
         "copied_real_frames": copied_frames(synthetic["rotations"], arrays["rotations"]),
-        "finite": bool(all(np.isfinite(v).all() for k, v in synthetic.items() if k != "path_deviation_m")),
+        "finite": bool(all(np.isfinite(v).all() for k, v in synthetic.items()
+                               if k != "path_deviation_m" and v.dtype != object)),
     }
 
 
@@ -275,20 +282,47 @@ def cycle_frames(phase_rate: np.ndarray, emotions: np.ndarray) -> dict[str, floa
             if (dominant == k).any()}
 
 
-def path_deviation(deviation: np.ndarray, families: Sequence[str]) -> dict[str, dict[str, float]]:
+def root_sway(root_paths: np.ndarray, fps: float, seconds: float = 1.0) -> float:
+    """The real reference of path deviation: the mean ground distance (m) of real walks' roots (N, T, 2) from their
+    own travel line, the root path averaged over about one stride (``seconds``, centred; frames whose window fits).
+    A root that follows a path perfectly still sways this much around it."""
+    frames = odd_frames(seconds, fps)
+    half = frames // 2
+    paths = torch.from_numpy(root_paths.astype(np.float64)).transpose(1, 2)  # (N, 2, T)
+    line = moving_average(paths, frames)[..., half:-half]
+    return float(torch.linalg.vector_norm(paths[..., half:-half] - line, dim=1).mean())
+
+
+def path_deviation(deviation: np.ndarray, families: Sequence[str], real_sway: float | None = None
+                   ) -> dict[str, dict[str, float]]:
     """Per trajectory family (and all): mean and 90th percentile over gaits of each gait's mean distance (m) from
-    its root to its placed trajectory piece."""
+    its root to its placed trajectory piece; with ``real_sway`` (``root_sway``) the mean's ratio to it."""
     families = np.array(families)
     groups = {"all": np.ones(len(families), bool), **{f: families == f for f in sorted(set(families))}}
-    return {f: {"mean": round(float(np.nanmean(deviation[m])), 4),
-                "p90": round(float(np.nanpercentile(deviation[m], 90)), 4)} for f, m in groups.items()}
+    out = {f: {"mean": round(float(np.nanmean(deviation[m])), 4),
+               "p90": round(float(np.nanpercentile(deviation[m], 90)), 4)} for f, m in groups.items()}
+    if real_sway is not None:
+        for v in out.values():
+            v["ratio_to_real_sway"] = round(v["mean"] / real_sway, 3)
+        out["real_walk_sway_m"] = {"mean": round(real_sway, 4), "how": "real labelled train walks' roots from their "
+                                   "own path averaged over 1 s (about one stride)"}
+    return out
 
 
-def foot_skating(synthetic: np.ndarray, real: np.ndarray, fps: float, contacts: ContactConfig) -> dict[str, float]:
-    """Mean horizontal speed of heel/toe points in contact (m/s), synthetic gaits vs real walks, and their ratio."""
+def foot_skating(synthetic: np.ndarray, real: np.ndarray, fps: float, contacts: ContactConfig,
+                 families: Sequence[str] | None = None) -> dict[str, Any]:
+    """Mean horizontal speed of heel/toe points in contact (m/s), synthetic gaits vs real walks, and their ratio;
+    with each gait's trajectory family, the ratio per family too."""
     syn = skating_speed(torch.from_numpy(synthetic), fps, contacts)[0]
     ref = skating_speed(torch.from_numpy(real), fps, contacts)[0]
-    return {"synthetic_m_s": round(syn, 4), "real_walks_m_s": round(ref, 4), "ratio_to_real": round(syn / ref, 3)}
+    out: dict[str, Any] = {"synthetic_m_s": round(syn, 4), "real_walks_m_s": round(ref, 4),
+                           "ratio_to_real": round(syn / ref, 3)}
+    if families is not None:
+        families = np.array(families)
+        out["ratio_to_real_per_trajectory_family"] = {
+            f: round(skating_speed(torch.from_numpy(synthetic[families == f]), fps, contacts)[0] / ref, 3)
+            for f in sorted(set(families))}
+    return out
 
 
 def walking_figures(root_paths: np.ndarray, emotions: np.ndarray, fps: float) -> dict[str, dict[str, float]]:
@@ -305,12 +339,33 @@ def walking_figures(root_paths: np.ndarray, emotions: np.ndarray, fps: float) ->
             for k, name in enumerate(EMOTIONS) if (dominant == k).any()}
 
 
-def placed_root_paths(work: SynthesisPlan, root_paths: np.ndarray) -> list[tuple[str, np.ndarray, list[np.ndarray]]]:
-    """Each trajectory with the generated root paths drawn where they start on it (for ``render_trajectories``)."""
+def piece_placement(pieces: torch.Tensor, placed: torch.Tensor) -> np.ndarray:
+    """(N, 3) where a family placed each trajectory piece (N, K, 2) in the world (``placed``, the same points moved
+    rigidly): the world origin of the piece's first point and the turn from the piece's frame to the world."""
+    def first_direction(p: torch.Tensor) -> torch.Tensor:
+        d = p[:, 1] - p[:, 0]
+        return torch.atan2(d[:, 0], d[:, 1])
+
+    turn = first_direction(placed) - first_direction(pieces)
+    return torch.cat([placed[:, 0], turn[:, None]], 1).numpy()
+
+
+def placed_root_paths(work: SynthesisPlan, root_paths: np.ndarray, placement: np.ndarray | None = None
+                      ) -> list[tuple[str, np.ndarray, list[np.ndarray]]]:
+    """Each trajectory with the generated root paths drawn where they start on it (for ``render_trajectories``).
+    With the families' ``piece_placement`` (N, 3) a root path is taken into its piece's frame exactly (a piece may
+    turn at its very start, as the new-heading trajectories do); without it, by its own initial travel direction."""
     placed: dict[str, list[np.ndarray]] = {t.id: [] for t in work.trajectories}
     by_id = {t.id: t for t in work.trajectories}
-    for r, root_path in zip(work.plan, root_paths):
+    for n, (r, root_path) in enumerate(zip(work.plan, root_paths)):
         points = by_id[r["trajectory_id"]].points
         i, direction = start_pose(points, r["start_m"])
-        placed[r["trajectory_id"]].append(onto(root_path, points[i], direction))
+        if placement is None or not np.isfinite(placement[n]).all():
+            placed[r["trajectory_id"]].append(onto(root_path, points[i], direction))
+            continue
+        ox, oz, turn = (float(v) for v in placement[n])
+        c, s_ = np.cos(direction - turn), np.sin(direction - turn)
+        x, z = root_path[:, 0] - ox, root_path[:, 1] - oz
+        # world -> the piece's frame (turn by -turn), -> the trajectory's world (turn by the start direction)
+        placed[r["trajectory_id"]].append(np.stack([x * c + z * s_, -x * s_ + z * c], -1) + points[i])
     return [(t.id, t.points, placed[t.id]) for t in work.trajectories]

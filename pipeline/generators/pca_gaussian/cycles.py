@@ -26,9 +26,10 @@ import numpy as np
 import pyarrow as pa
 import torch
 
-from pipeline.annotate.annotation import AnnotateConfig, annotate_clip, rebuild_clips
+from pipeline.annotate.annotation import AnnotateConfig, annotate_clip
 from pipeline.core.emotions import EMOTIONS
 from pipeline.core.skeleton import Skeleton
+from pipeline.generators.base import train_clips
 from pipeline.ops.geometry import wrap_angle
 from pipeline.ops.quaternion import qfix, qlog, qmul, yaw
 from pipeline.ops.resample import resample
@@ -111,25 +112,17 @@ def _canonical_rotvec(rotations: torch.Tensor, heading: float, frames: int) -> n
 def cut_cycles(table: pa.Table, arrays: dict[str, np.ndarray], skeleton: Skeleton, cfg: CycleConfig = CycleConfig(),
                annotate: AnnotateConfig = AnnotateConfig()) -> Cycles:
     """The forward-walk cycles of the ``cfg.split`` clips of a split gait table (``io.gait_table.read_gaits``)."""
-    split = np.array(table.column("split").to_pylist())
-    content = np.array(table.column("content").to_pylist())
-    rows = np.flatnonzero((split == cfg.split) & (content == cfg.content))
-    clip_ids = [table.column("clip_id")[int(r)].as_py() for r in rows]
-    window = arrays["positions"].shape[1]
-    starts = np.round(table.column("t_start").to_numpy()[rows] * annotate.fps).astype(int)
-    positions = rebuild_clips(clip_ids, starts, arrays["positions"][rows], window)
-    rotations = rebuild_clips(clip_ids, starts, arrays["rotations"][rows], window)
-    headings = rebuild_clips(clip_ids, starts, arrays["heading"][rows], window)
+    clips = train_clips(table, arrays, cfg.split, (cfg.content,), annotate.fps)
     styles = table.column("style").to_pylist()
     methods = table.column("label_method").to_pylist()
     dropped: Counter = Counter()
     out: dict[str, list] = {k: [] for k in ("rotvec", "durations", "strides", "emotion", "clip_id", "style",
                                             "label_method", "start_frame", "follows")}
-    for cid in sorted(positions):
-        clip_positions, members = positions[cid]
-        first_row = rows[members[0][0]]
-        clip_rotations = torch.from_numpy(rotations[cid][0].astype(np.float64))
-        clip_heading = headings[cid][0].astype(np.float64)
+    for cid in sorted(clips.positions):
+        clip_positions = clips.positions[cid]
+        first_row = clips.first_row[cid]
+        clip_rotations = torch.from_numpy(clips.rotations[cid].astype(np.float64))
+        clip_heading = clips.heading[cid].astype(np.float64)
         strikes = annotate_clip(torch.from_numpy(clip_positions), skeleton, annotate)["events"]["right_strike"]
         previous_end = None
         for a, b in zip(strikes[:-1], strikes[1:]):

@@ -435,7 +435,8 @@ def test_the_running_publish_stage_records_its_lineage_whatever_ran_after_it(pub
     directory, _ = published
     doc = prov_document(stage_graph(REPO, LOCK, running="publish"), REPO, directory)
     assert set(doc["activity"]) == {f"stage:{s}" for s in ("ingest", "annotate", "split", "train", "synthesize",
-                                                           "fit_pca_gaussian", "synthesize_pca_gaussian", "publish")}
+                                                           "fit_pca_gaussian", "synthesize_pca_gaussian",
+                                                           "fit_motion_graph", "synthesize_motion_graph", "publish")}
     lock = _lock()
     earlier = {**lock, "stages": {k: v for k, v in lock["stages"].items() if k not in ("publish", "audit")}}
     path = tmp_path / "dvc.lock"

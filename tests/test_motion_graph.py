@@ -130,9 +130,12 @@ def test_transitions_walk_from_the_start_emotion_to_the_end_emotion(graph, plan,
                           walk.context, settings)
     walked = graph.frames.dominant[nodes[:, walk.context:]]
     planned = per_frame.argmax(-1)
+    checked = 0
     for w, p, lv in zip(walked, planned, level):
         if lv == LEVELS[0] and p[0] != p[-1]:
             assert w[0] == p[0] and w[-1] == p[-1]
+            checked += 1
+    assert checked >= 4  # most sampled transitions switch their dominant emotion and are found
 
 
 def test_generated_gaits_play_the_real_frames_their_lineage_names(graph, plan, params, skeleton):

@@ -73,21 +73,17 @@ def blended(path: np.ndarray, g: MotionGraph, frames: int) -> tuple[torch.Tensor
     f = g.frames
     rot = torch.from_numpy(f.rotations[path].astype(np.float64))
     step, turn, height = f.step[path].copy(), f.turn[path].copy(), f.height[path].copy()
-    successor = f.successor()
-    last_of_clip = np.zeros(len(f.clip), dtype=np.int64)
-    ends = np.flatnonzero(successor < 0)
-    starts = np.concatenate([[0], ends[:-1] + 1])
-    for s, e in zip(starts, ends):
-        last_of_clip[s:e + 1] = e
+    # the last frame of each node's clip (frames are stored clip after clip)
+    last_of_clip = np.searchsorted(f.clip, f.clip[path], side="right") - 1
     transitions = 0
     faded = np.zeros(len(path), dtype=bool)
     for t0 in range(1, len(path)):
-        i = path[t0 - 1]
-        if successor[i] == path[t0]:
+        i, last = path[t0 - 1], last_of_clip[t0 - 1]
+        if path[t0] == i + 1 and i < last:  # the natural successor
             continue
         transitions += 1
         span = min(frames, len(path) - t0)
-        old = np.minimum(i + 1 + np.arange(span), last_of_clip[i])
+        old = np.minimum(i + 1 + np.arange(span), last)
         w = 0.5 - 0.5 * np.cos(math.pi * (np.arange(span) + 1) / (frames + 1))
         window = slice(t0, t0 + span)
         faded[window] = True

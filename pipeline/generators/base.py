@@ -18,6 +18,9 @@ import numpy as np
 import pyarrow as pa
 import torch
 
+from pipeline.ops.geometry import odd_frames
+from pipeline.ops.path_fit import fit_poses
+
 
 @dataclass
 class GeneratedMotion:
@@ -39,6 +42,18 @@ class GeneratedMotion:
     placed_paths: torch.Tensor | None = None
     source_segments: list[str] | None = None  # per gait, JSON: the real frames it was assembled from (a family
                                               # that re-sequences real motion; published as source_segments)
+
+
+def fit_placed(positions: torch.Tensor, rotations: torch.Tensor, paths: torch.Tensor, placement: Any
+               ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Every family's last step before foot locking: walks (positions (N, T, J, 3), rotations (N, T, J, 4)) laid
+    onto the paths (N, K, 2) they were placed along (``ops.path_fit``) by the placement's ``path_fit_s`` (the
+    travel line's averaging time; 0 leaves them as placed), ``path_corner_m`` and ``path_turn_m``
+    (``rollout.PlacementConfig``); also the turn (N, T) rad that gave each frame's body."""
+    if placement.path_fit_s <= 0:
+        return positions, rotations, torch.zeros(positions.shape[:2], dtype=positions.dtype)
+    return fit_poses(positions, rotations, paths, odd_frames(placement.path_fit_s, placement.fps),
+                     placement.path_corner_m, placement.path_turn_m)
 
 
 class GeneratorFamily(Protocol):

@@ -284,13 +284,14 @@ def cycle_frames(phase_rate: np.ndarray, emotions: np.ndarray) -> dict[str, floa
 
 def root_sway(root_paths: np.ndarray, fps: float, seconds: float = 1.0) -> float:
     """The real reference of path deviation: the mean ground distance (m) of real walks' roots (N, T, 2) from their
-    own travel line, the root path averaged over about one stride (``seconds``, centred; frames whose window fits).
-    A root that follows a path perfectly still sways this much around it."""
+    own travel line, the root path averaged over about one stride (``seconds``, centred; frames whose window fits),
+    measured as path deviation is (``distance_to_polyline``: across the line, not along it). A root that follows a
+    path perfectly still sways this much around it."""
     frames = odd_frames(seconds, fps)
     half = frames // 2
     paths = torch.from_numpy(root_paths.astype(np.float64)).transpose(1, 2)  # (N, 2, T)
-    line = moving_average(paths, frames)[..., half:-half]
-    return float(torch.linalg.vector_norm(paths[..., half:-half] - line, dim=1).mean())
+    line = moving_average(paths, frames)[..., half:-half].transpose(1, 2)
+    return float(distance_to_polyline(paths[..., half:-half].transpose(1, 2), line).mean())
 
 
 def path_deviation(deviation: np.ndarray, families: Sequence[str], real_sway: float | None = None

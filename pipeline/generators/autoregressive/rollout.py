@@ -12,14 +12,18 @@ paper §4 and §5.4) and the root is placed from the predicted root features (pa
   ``predicted_speed`` is the paper's placement: the root advances by ŝ (m/frame, clamped to [0, max_speed])
   along the travel direction.
 * direction: the travel direction turns towards a point ``lookahead_m`` ahead on the target path (pure
-  pursuit), at most ``max_turn_deg_per_s``; so a path sharper than a person turns is cut, and the deviation
-  is measured, not hidden. With ``stance_foot`` the body's steps may run at an angle to the travel direction
+  pursuit), at most ``max_turn_deg_per_s``; so a path sharper than a person turns is cut (the path fit
+  after the last frame lays the walk back onto it; the deviation left is measured). With ``stance_foot`` the body's steps may run at an angle to the travel direction
   (a pelvis turned relative to it); that angle, averaged over ``drift_seconds`` and at most ``max_drift_deg``,
   is steered out so that the body, not the travel frame, follows the path;
 * pelvis: the predicted pelvis versor, which is relative to the direction of travel, turned to the travel
   direction (so the body faces where the network's pelvis says, relative to where it walks: a side-stepping
   seed keeps side-stepping);
 * height: the seed prefix's mean root height plus the predicted deviation ĥ.
+
+After the last frame (so the network reads its frames as it placed them): root smoothing (``root_smoothing_s``),
+the path fit (``path_fit_s``: the walk's travel line bent onto the path, its sway kept; ``ops.path_fit``; the
+pursuit alone cut curves and corners) and foot locking (``foot_lock``).
 
 The next step's inputs are those of the placed frame: its versors, their affective features, ŝ, ĥ, δ̂, the
 curvature κ of the travel direction (steps of length ŝ), the stepping phase continued at the seed's rate, and
@@ -38,6 +42,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from pipeline.generators.base import fit_placed
 from pipeline.generators.autoregressive.network import FOOT_JOINTS, EmotiveGaitNet, condition_vectors, sharpened
 from pipeline.ops.geometry import (
     arc_lengths,
@@ -75,6 +80,9 @@ class PlacementConfig:
     guidance: float = 1.0  # classifier-free guidance w of the condition (1: none; see ``generate``)
     expression_sharpness: float = 1.0  # the condition of an emotion m is m^p / sum(m^p) (1: m itself; ``generate``)
     root_smoothing_s: float = 0.0  # centred moving average of the placed root's ground path (``smoothed_root``)
+    path_fit_s: float = 0.0  # lay the walk's travel line (averaged over this long) onto its path (ops.path_fit; 0: no)
+    path_corner_m: float = 0.2  # ... the root following the path with its corners rounded over this much arc,
+    path_turn_m: float = 0.6  # ... the body facing along it with its corners rounded over this much
     foot_lock: bool = False  # hold stance feet still by leg IK after generation (ops.footlock)
     contacts: ContactConfig = ContactConfig()  # what a stance foot is (the annotation's rule)
 
@@ -288,6 +296,11 @@ def generate(model: EmotiveGaitNet, seeds: Seeds, paths: torch.Tensor, emotions:
         stacked["positions"] = smoothed_root(stacked["positions"], seed.root_position[..., [0, 2]], window)
         path = torch.cat([seed.root_position[:, -1:, [0, 2]], stacked["positions"][..., 0, [0, 2]]], 1)
         stacked["advance"] = torch.linalg.vector_norm(path.diff(dim=1), dim=-1)
+    if cfg.path_fit_s > 0:  # laid onto the path after the network has run: what it read stays as it generated it
+        stacked["positions"], stacked["rotations"], turn = fit_placed(stacked["positions"], stacked["rotations"],
+                                                                      paths, cfg)
+        stacked["heading"] = heading_angle(stacked["rotations"][..., 0, :])
+        stacked["travel"] = stacked["travel"] + turn
     if cfg.foot_lock:  # the network's own inputs were its unlocked frames; only what is published changes
         stacked["rotations"], stacked["positions"] = lock_feet(stacked["rotations"], stacked["positions"][..., 0, :],
                                                                offsets, parents, cfg.fps, cfg.contacts)

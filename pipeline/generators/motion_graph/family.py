@@ -8,10 +8,13 @@ clip and frame ranges it was assembled from.
   new ones with a cosine weight; the root's ground step, turn and height blend linearly with the same weight.
   Transitions sit at foot events (the key states), where a foot starts or ends its stance.
 * **Placement:** the walk starts at its trajectory piece's start facing along it. Each frame moves the root by its
-  source frame's ground step (in the heading frame) and turns the body by its source frame's turn plus a warp of
-  at most ``max_warp_deg`` towards the point ``lookahead_m`` ahead on the path (``ops.geometry.pursue``, as the
-  search assumed); the root height is the source frame's. Then the same foot locking as the other families
-  (``generate.foot_lock``); the warp it took is reported, as is the skating.
+  source frame's ground step (in the heading frame) and turns the body by its source frame's turn; the root height
+  is the source frame's. Then the walk is laid onto its path (``generate.path_fit_s``, ``ops.path_fit``: its
+  travel line bent onto the path, the sway kept) and the same foot locking as the other families
+  (``generate.foot_lock``). Without the path fit, a warp of at most ``max_warp_deg`` per frame turns the body
+  towards the point ``lookahead_m`` ahead on the path (``ops.geometry.pursue``, the search's model of placement);
+  with it that warp would only add wiggles (the pursuit steers on the swaying root). The turning added to the
+  frames' own (warp and fit) is reported, as is the skating.
 """
 
 from __future__ import annotations
@@ -29,11 +32,11 @@ import torch
 from pipeline.core.emotions import EMOTIONS
 from pipeline.core.skeleton import Skeleton
 from pipeline.generators.autoregressive.rollout import PlacementConfig
-from pipeline.generators.base import GeneratedMotion
+from pipeline.generators.base import GeneratedMotion, fit_placed
 from pipeline.generators.motion_graph.graph import MotionGraph, load_graph
 from pipeline.generators.motion_graph.search import LEVELS, SearchConfig, search
 from pipeline.ops.footlock import lock_feet
-from pipeline.ops.geometry import arc_lengths, heading_angle, pursue
+from pipeline.ops.geometry import arc_lengths, heading_angle, pursue, wrap_angle
 from pipeline.ops.kinematics import canonical_positions
 from pipeline.ops.quaternion import qmul, qslerp, yaw
 
@@ -97,8 +100,9 @@ def blended(path: np.ndarray, g: MotionGraph, frames: int) -> tuple[torch.Tensor
 
 def place(local: torch.Tensor, step: torch.Tensor, turn: torch.Tensor, height: torch.Tensor, paths: torch.Tensor,
           lookahead_m: float, max_warp: float) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Walks (N, L) along paths (N, K, 2) from (0, 0) facing +Z: (pelvis world rotations put into ``local``'s
-    first joint -> rotations (N, L, J, 4), root positions (N, L, 3), warps (N, L) rad)."""
+    """Walks (N, L) along paths (N, K, 2) from (0, 0) facing +Z, each frame turning by its own ``turn`` and a
+    pursuit warp of at most ``max_warp``: (pelvis world rotations put into ``local``'s first joint -> rotations
+    (N, L, J, 4), root positions (N, L, 3), warps (N, L) rad)."""
     n, length = step.shape[:2]
     cumulative = arc_lengths(paths)
     psi = torch.zeros(n, dtype=step.dtype)
@@ -120,6 +124,11 @@ def place(local: torch.Tensor, step: torch.Tensor, turn: torch.Tensor, height: t
     rotations = torch.cat([pelvis[:, :, None], local[:, :, 1:]], 2)
     root = torch.stack([ground[..., 0], height, ground[..., 1]], -1)
     return rotations, root, torch.stack(warps, 1)
+
+
+def _per_frame(turns: torch.Tensor) -> torch.Tensor:
+    """Headings added (N, L) -> the turn each frame adds (N, L) (0 at the first)."""
+    return torch.cat([torch.zeros_like(turns[:, :1]), wrap_angle(turns.diff(dim=1))], 1)
 
 
 def source_phase(g: MotionGraph, nodes: np.ndarray) -> torch.Tensor:
@@ -177,14 +186,18 @@ class MotionGraphFamily:
         turn = torch.from_numpy(np.stack([p[2] for p in parts])).to(torch.float32)
         height = torch.from_numpy(np.stack([p[3] for p in parts])).to(torch.float32)
         paths = paths.to(torch.float32)
-        rotations, root, warp = place(local, step, turn, height, paths, self.search_config.lookahead_m,
-                                      math.radians(self.search_config.max_warp_deg))
         offsets = torch.from_numpy(self.skeleton.offsets).to(torch.float32)
+        # with the path fit the walk is laid onto its path afterwards, and a pursuit would only add wiggles (it
+        # steers on the swaying root); without it, the pursuit's warp is what keeps the walk near its path
+        fitted = self.placement.path_fit_s > 0
+        rotations, root, warp = place(local, step, turn, height, paths, self.search_config.lookahead_m,
+                                      0.0 if fitted else math.radians(self.search_config.max_warp_deg))
+        positions = canonical_positions(root, rotations, offsets, self.skeleton.parents)
+        positions, rotations, fit_turn = fit_placed(positions, rotations, paths, self.placement)
+        warp = warp + _per_frame(fit_turn)  # the turning added to the frames' own
         if self.placement.foot_lock:
-            rotations, positions = lock_feet(rotations, root, offsets, self.skeleton.parents, self.placement.fps,
-                                             self.placement.contacts)
-        else:
-            positions = canonical_positions(root, rotations, offsets, self.skeleton.parents)
+            rotations, positions = lock_feet(rotations, positions[..., 0, :], offsets, self.skeleton.parents,
+                                             self.placement.fps, self.placement.contacts)
         ids = self.graph.frames.clip_ids
         lineage = []
         dominant = emotions.argmax(-1).numpy()

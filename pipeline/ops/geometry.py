@@ -137,14 +137,17 @@ def arc_lengths(polyline: torch.Tensor, correctly_rounded: bool = False) -> torc
 
 
 def point_at_arc(paths: torch.Tensor, cumulative: torch.Tensor, arc: torch.Tensor) -> torch.Tensor:
-    """Points (N, 2) at arc length ``arc`` (N,) along paths (N, K, 2) with arc lengths ``cumulative`` (N, K)
-    (``arc_lengths``), one per path; beyond the end the last segment is extended."""
-    k = torch.searchsorted(cumulative, arc[:, None]).squeeze(-1).clamp(1, paths.shape[1] - 1)
-    rows = torch.arange(len(arc))
-    a, b = paths[rows, k - 1], paths[rows, k]
-    seg = (cumulative[rows, k] - cumulative[rows, k - 1]).clamp_min(1e-9)
-    u = ((arc - cumulative[rows, k - 1]) / seg)[:, None]
-    return a + u * (b - a)
+    """Points (N, 2), or (N, T, 2), at arc lengths ``arc`` (N,), or (N, T), along paths (N, K, 2) with arc lengths
+    ``cumulative`` (N, K) (``arc_lengths``), each row along its own path; beyond the end the last segment is
+    extended (before the start, the first)."""
+    arcs = arc[:, None] if arc.dim() == 1 else arc
+    k = torch.searchsorted(cumulative.contiguous(), arcs.contiguous()).clamp(1, paths.shape[1] - 1)
+    a = torch.gather(paths, 1, (k - 1)[..., None].expand(-1, -1, 2))
+    b = torch.gather(paths, 1, k[..., None].expand(-1, -1, 2))
+    lo, hi = torch.gather(cumulative, 1, k - 1), torch.gather(cumulative, 1, k)
+    u = ((arcs - lo) / (hi - lo).clamp_min(1e-9))[..., None]
+    out = a + u * (b - a)
+    return out[:, 0] if arc.dim() == 1 else out
 
 
 def points_at_arcs(polyline: torch.Tensor, arcs: torch.Tensor) -> torch.Tensor:

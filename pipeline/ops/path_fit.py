@@ -34,6 +34,7 @@ from pipeline.ops.geometry import (
     direction_of,
     from_local_frame,
     moving_average,
+    point_at_arc,
     to_local_frame,
     unit_direction,
     wrap_angle,
@@ -52,17 +53,6 @@ def _mirrored_average(points: torch.Tensor, frames: int) -> torch.Tensor:
     tail = 2 * points[:, -1:] - points[:, -1 - back.flip(0)]
     padded = torch.cat([head, points, tail], 1).transpose(1, 2)
     return moving_average(padded, 2 * half + 1).transpose(1, 2)[:, half:half + points.shape[1]]
-
-
-def _along(paths: torch.Tensor, cumulative: torch.Tensor, arcs: torch.Tensor) -> torch.Tensor:
-    """Points (N, T, 2) at arc lengths arcs (N, T) along paths (N, K, 2) (arc lengths ``cumulative`` (N, K)),
-    linear between points, straight on past either end."""
-    k = torch.searchsorted(cumulative.contiguous(), arcs.contiguous()).clamp(1, paths.shape[1] - 1)
-    a = torch.gather(paths, 1, (k - 1)[..., None].expand(-1, -1, 2))
-    b = torch.gather(paths, 1, k[..., None].expand(-1, -1, 2))
-    lo, hi = torch.gather(cumulative, 1, k - 1), torch.gather(cumulative, 1, k)
-    u = ((arcs - lo) / (hi - lo).clamp_min(1e-9))[..., None]
-    return a + u * (b - a)
 
 
 def _half_window(frames: int, length: int) -> int:
@@ -139,10 +129,11 @@ def fit_ground(ground: torch.Tensor, paths: torch.Tensor, frames: int, corner_m:
     arcs = closest_arc(ground[:, 0], path, cumulative)[:, None] + arc_lengths(line)
     facing, facing_cumulative = _rounded(paths, turn_m)
     eps = torch.full_like(arcs, 0.05)  # the facing path's direction read over ±5 cm
-    towards = _along(facing, facing_cumulative, arcs + eps) - _along(facing, facing_cumulative, arcs - eps)
+    towards = (point_at_arc(facing, facing_cumulative, arcs + eps)
+               - point_at_arc(facing, facing_cumulative, arcs - eps))
     theta = direction_of(towards[..., 0], towards[..., 1])
     around = to_local_frame(straight, unit_direction(tau), line)
-    placed = from_local_frame(around, unit_direction(theta), _along(path, cumulative, arcs))
+    placed = from_local_frame(around, unit_direction(theta), point_at_arc(path, cumulative, arcs))
     # the body's turn, averaged as the line is: what is left of a stride's sway in a one-second mean step would
     # swing the body about its root, and its feet with it, by a degree or two every frame
     turn = wrap_angle(theta - tau - travel)

@@ -1,16 +1,20 @@
 # Two entry points for a newcomer: `make repro` (set up + run the pipeline) and `make test`.
 PYTHON ?= python3
 VENV := .venv
+PIP_VERSION := 26.3
 BIN := $(VENV)/bin
 export DVC_NO_ANALYTICS := 1
 export PYTHONUNBUFFERED := 1
 
-.PHONY: setup repro test test-fast golden bench clean
+.PHONY: setup repro test test-fast golden bench lock clean
 
-$(BIN)/emogait: pyproject.toml
+# Installed from the lock file (every package pinned with its sha256; `make lock` rewrites it), then the project itself
+# without dependencies: two machines, or two days, get the same libraries, so the same bytes.
+$(BIN)/emogait: pyproject.toml requirements.lock
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install --quiet pip==$(PIP_VERSION)
+	$(BIN)/python -m pip install --quiet --require-hashes -r requirements.lock
+	$(BIN)/python -m pip install --quiet --no-deps --no-build-isolation -e .
 	touch $@
 
 setup: $(BIN)/emogait
@@ -36,6 +40,14 @@ bench: setup
 	$(BIN)/python benchmarks/ingest.py
 	$(BIN)/python benchmarks/contacts.py
 	$(BIN)/python benchmarks/generate.py
+	$(BIN)/python benchmarks/fuzz.py
+
+# Rewrite requirements.lock from pyproject.toml (the ranges library users get) after a dependency change. pip-tools
+# runs in its own environment so that the project's stays exactly what the lock says.
+lock:
+	test -x .venv-lock/bin/pip-compile || ($(PYTHON) -m venv .venv-lock && .venv-lock/bin/pip install --quiet pip-tools==7.6.2)
+	.venv-lock/bin/pip-compile --quiet --generate-hashes --allow-unsafe --strip-extras --extra test \
+	  --no-emit-index-url --no-emit-find-links -o requirements.lock pyproject.toml
 
 clean:
 	rm -rf $(VENV) data reports .pytest_cache

@@ -1,0 +1,74 @@
+"""The lock file (requirements.lock, what `make` installs) against pyproject.toml (the ranges library users get) and
+against the environment the tests run in: a dependency added to one and not the other, an unhashed pin, or an
+environment that is not the lock's, is what made two machines write different bytes."""
+
+from __future__ import annotations
+
+import re
+import sys
+import tomllib
+from importlib import metadata
+from pathlib import Path
+
+import pytest
+from packaging.requirements import Requirement
+from packaging.utils import canonicalize_name
+from packaging.version import Version
+
+from stages.common import REPO
+
+LOCK = REPO / "requirements.lock"
+PIN = re.compile(r"^([A-Za-z0-9][A-Za-z0-9._-]*)==(\S+)")
+
+
+def _lock() -> dict[str, tuple[Version, list[str]]]:
+    """{canonical name: (version, sha256 hashes)} from the lock's pins and their ``--hash`` continuation lines."""
+    pins: dict[str, tuple[Version, list[str]]] = {}
+    name = None
+    for line in LOCK.read_text().splitlines():
+        if m := PIN.match(line):
+            name = canonicalize_name(m.group(1))
+            assert name not in pins, f"requirements.lock: {name} pinned twice"
+            pins[name] = (Version(m.group(2)), [])
+        elif name and (h := re.search(r"--hash=sha256:([0-9a-f]{64})", line)):
+            pins[name][1].append(h.group(1))
+        elif not line.startswith(" "):
+            name = None
+    return pins
+
+
+def _declared() -> list[Requirement]:
+    project = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]
+    return [Requirement(r) for r in project["dependencies"] + project["optional-dependencies"]["test"]]
+
+
+def test_every_declared_dependency_is_locked_within_its_range_and_hashed():
+    pins = _lock()
+    assert len(pins) > 50, "requirements.lock holds the whole dependency tree, not only the direct dependencies"
+    for name, (version, hashes) in pins.items():
+        assert hashes, f"requirements.lock: {name}=={version} without a --hash"
+    for req in _declared():
+        name = canonicalize_name(req.name)
+        assert name in pins, f"pyproject.toml names {req}, requirements.lock has no {name} (run `make lock`)"
+        assert req.specifier.contains(pins[name][0], prereleases=True), (
+            f"requirements.lock pins {name}=={pins[name][0]}, outside pyproject.toml's {req}")
+
+
+def test_torch_is_the_cpu_build_pinned_exactly():
+    version, _ = _lock()["torch"]
+    assert version.public == "2.13.0" and version.local == "cpu", f"torch {version}: a range fetches a CUDA build"
+
+
+@pytest.mark.skipif(Path(sys.prefix).resolve() != (REPO / ".venv").resolve(),
+                    reason="not the project's .venv, which `make` installs from the lock")
+def test_the_installed_environment_is_the_lock():
+    """In the environment `make` installed (CI's): every locked package is installed at its locked version."""
+    wrong = {}
+    for name, (version, _) in _lock().items():
+        try:
+            found = Version(metadata.version(name))
+        except metadata.PackageNotFoundError:
+            found = None
+        if found != version:
+            wrong[name] = (str(version), str(found))
+    assert not wrong, f"installed versions differ from requirements.lock (locked, installed): {wrong}"

@@ -5,6 +5,8 @@
  *   count of values, another number of non-blank lines than `frames`, a token that is not a plain finite
  *   decimal number ([+-]digits[.digits][(e|E)[+-]digits]), or a non-ASCII byte. The Python caller then
  *   runs its line-by-line diagnosis, which names the line and value; this module never explains errors.
+ *   The output is allocated only when the data can hold frames*channels values (a digit and a separator
+ *   each), so a header claiming 10^9 frames costs nothing and a claim near 2^63 cannot overflow the size.
  *
  * Numbers are converted exactly (correctly rounded, bit-identical to Python's float()): Clinger's fast
  * path (an integer mantissa < 2^53 times or divided by an exact power of ten <= 1e22 is one correctly
@@ -72,12 +74,15 @@ static int parse_number(const char *p, const char *end, double *out) {
         value = (double)mantissa;
         value = e10 >= 0 ? value * POW10[e10] : value / POW10[-e10];
     } else {
+        /* strtod needs a terminated string; a token of any length is a valid number to Python's float() */
         char buffer[128];
         size_t n = (size_t)(end - start);
-        if (n >= sizeof(buffer)) return -1;
-        memcpy(buffer, start, n);
-        buffer[n] = '\0';
-        value = strtod(buffer, NULL);
+        char *text = n < sizeof(buffer) ? buffer : (char *)malloc(n + 1);
+        if (!text) return -1;
+        memcpy(text, start, n);
+        text[n] = '\0';
+        value = strtod(text, NULL);
+        if (text != buffer) free(text);
         if (value - value != 0) return -1; /* inf or nan */
         *out = value;
         return 0;
@@ -90,7 +95,8 @@ static PyObject *parse(PyObject *self, PyObject *args) {
     Py_buffer view;
     Py_ssize_t frames, channels;
     if (!PyArg_ParseTuple(args, "y*nn", &view, &frames, &channels)) return NULL;
-    if (frames <= 0 || channels <= 0) {
+    if (frames <= 0 || channels <= 0 || frames > PY_SSIZE_T_MAX / (Py_ssize_t)sizeof(double) / channels ||
+        frames * channels > (view.len + 1) / 2) {
         PyBuffer_Release(&view);
         Py_RETURN_NONE;
     }

@@ -25,6 +25,9 @@ except ImportError:  # pragma: no cover - source checkouts without a build use t
     _motion = None
 
 _MOTION_RE = re.compile(r"^[ \t]*MOTION[ \t]*\r?$", re.MULTILINE)
+# Frame rates outside 1-10,000 fps are no capture: a Frame Time of 1e-320 s makes fps infinite, one of 1e308 s
+# makes every duration infinite.
+MIN_FRAME_TIME, MAX_FRAME_TIME = 1e-4, 1.0
 VALID_CHANNELS = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
 
 
@@ -34,7 +37,12 @@ class BvhError(ValueError):
     def __init__(self, path: str, line: int | None, expected: str, found: str):
         self.path, self.line, self.expected, self.found = path, line, expected, found
         where = f"{path}:{line}" if line is not None else path
-        super().__init__(f"{where}: expected {expected}, found {found}")
+        super().__init__(f"{where}: expected {_clip(expected)}, found {_clip(found)}")
+
+
+def _clip(text: str, limit: int = 200) -> str:
+    """Text for a message: a 100,000-character joint name or token is named by its start."""
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
 
 
 @dataclass(frozen=True)
@@ -120,6 +128,9 @@ def _parse_hierarchy(lines: list[str], path: str) -> tuple[BvhSkeleton, int]:
         if not tokens:
             continue
         key = tokens[0]
+        if pending is not None and key != "{":
+            # A joint without its block would keep no OFFSET, and what follows would land on its parent.
+            raise BvhError(path, lineno, f"'{{' opening the block of {names[pending]!r}", repr(" ".join(tokens)[:40]))
         if key in ("ROOT", "JOINT"):
             if key == "ROOT" and (seen_root or stack):
                 raise BvhError(path, lineno, "one ROOT at the top level", "a second ROOT")
@@ -185,9 +196,9 @@ def _parse_hierarchy(lines: list[str], path: str) -> tuple[BvhSkeleton, int]:
             if not stack or end_site[stack[-1]]:
                 raise BvhError(path, lineno, "CHANNELS inside a ROOT/JOINT block", "CHANNELS elsewhere")
             j = stack[-1]
-            if len(tokens) < 2 or not tokens[1].isdigit():
+            count = _count(tokens[1], path, lineno, "a channel count after CHANNELS") if len(tokens) > 1 else None
+            if count is None:
                 raise BvhError(path, lineno, "a channel count after CHANNELS", repr(" ".join(tokens[1:2])))
-            count = int(tokens[1])
             chans = tuple(tokens[2:])
             if len(chans) != count:
                 raise BvhError(path, lineno, f"{count} channel names for {names[j]!r}", f"{len(chans)}")
@@ -204,7 +215,24 @@ def _parse_hierarchy(lines: list[str], path: str) -> tuple[BvhSkeleton, int]:
 
 
 # The number grammar the bulk parser accepts (Python's float() also takes "1_0" and non-ASCII digits).
-_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|[+-]?(nan|inf|infinity)", re.IGNORECASE)
+_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|[+-]?(nan|inf|infinity)", re.IGNORECASE | re.ASCII)
+_COUNT = re.compile(r"[0-9]+")
+# Counts past this many digits cannot describe a file (10^18 frame lines): rejected before int() (whose limit is
+# 4300 digits) and before the C parser (whose sizes are 64-bit).
+_MAX_COUNT_DIGITS = 18
+# The bulk parser's separators; Python's str.split() also splits at \x1c-\x1f and Unicode spaces, which the bulk
+# parser (rightly) reads as part of a token, so the diagnosis splits as it does.
+_FRAME_SPACE = re.compile(r"[ \t\r\f\v]+")
+
+
+def _count(token: str, path: str, lineno: int, what: str) -> int | None:
+    """A non-negative ASCII integer, or None when ``token`` is not one; BvhError when it is absurdly long."""
+    if not _COUNT.fullmatch(token):
+        return None
+    digits = token.lstrip("0") or "0"
+    if len(digits) > _MAX_COUNT_DIGITS:
+        raise BvhError(path, lineno, f"{what} below 10^{_MAX_COUNT_DIGITS}", f"a number of {len(digits)} digits")
+    return int(digits)
 
 
 def _number(token: str, path: str, lineno: int, what: str) -> float:
@@ -243,13 +271,17 @@ def _parse_motion(text: str, motion_lineno: int, skeleton: BvhSkeleton, path: st
     # The MOTION line's own line break is still at the start of ``text``.
     pos = text.find("\n") + 1 if text.lstrip(" \t\r").startswith("\n") else 0
     frames_text, pos, frames_line = _header_value(text, pos, motion_lineno, "Frames:", path)
-    if not frames_text.isdigit():
-        raise BvhError(path, frames_line, "a non-negative integer frame count", repr(frames_text))
-    n_frames = int(frames_text)
+    n_frames = _count(frames_text, path, frames_line, "a frame count")
+    if n_frames is None:
+        raise BvhError(path, frames_line, "a non-negative integer frame count", repr(frames_text[:40]))
     ft_text, pos, ft_line = _header_value(text, pos, frames_line, "Frame Time:", path)
     frame_time = _number(ft_text, path, ft_line, "Frame Time")
     if frame_time <= 0:
         raise BvhError(path, ft_line, "a positive Frame Time in seconds", ft_text)
+    if not MIN_FRAME_TIME <= frame_time <= MAX_FRAME_TIME:
+        rates = f"{1 / MAX_FRAME_TIME:g} to {1 / MIN_FRAME_TIME:g} frames per second"
+        raise BvhError(path, ft_line, f"a Frame Time of {MIN_FRAME_TIME:g} to {MAX_FRAME_TIME:g} s ({rates})",
+                       ft_text[:40])
     n_channels = skeleton.channel_count
     if n_frames == 0:
         raise BvhError(path, frames_line, "at least one frame", "Frames: 0")
@@ -273,6 +305,10 @@ _CSV_CONVERT = pacsv.ConvertOptions(column_types={"v": pa.float64()}, strings_ca
 def _bulk_frames(data: str, n_frames: int, n_channels: int) -> np.ndarray | None:
     """(n_frames, n_channels) float64 array, or None if anything is off (the slow path then says what)."""
     raw = data.encode("ascii", errors="replace")
+    if n_frames * n_channels > (len(raw) + 1) // 2:
+        # Too few bytes for the values claimed (each takes a digit and a separator): never allocate for a claim
+        # such as "Frames: 1000000000"; the diagnosis counts the lines there are.
+        return None
     if _motion is not None:
         values = _motion.parse(raw, n_frames, n_channels)
         return None if values is None else np.frombuffer(values, dtype=np.float64).reshape(n_frames, n_channels)
@@ -312,8 +348,8 @@ def _diagnose_frames(data: str, frames_line: int, ft_line: int, n_frames: int, n
     frame = 0
     for k, line in enumerate(data.split("\n")):
         lineno = ft_line + k + 1
-        tokens = line.split()
-        if not tokens:
+        tokens = _FRAME_SPACE.split(line.strip(" \t\r\f\v"))
+        if tokens == [""]:
             continue
         if frame >= n_frames:
             raise BvhError(path, lineno, f"Frames: {n_frames} frame lines, then end of file", "more frame lines")

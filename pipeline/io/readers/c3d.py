@@ -45,6 +45,7 @@ from pipeline.io.manifests import AXES_TO_Y_UP
 from pipeline.ops.geometry import to_y_up
 
 UNIT_SCALE_M = {"mm": 0.001, "cm": 0.01, "m": 1.0}
+MIN_RATE, MAX_RATE = 1.0, 10000.0  # frames per second; outside, no capture (and 0, NaN or Inf break every time)
 _PROCESSORS = {84: "Intel", 85: "DEC", 86: "MIPS"}
 _EVENT_CODES = {"HS": "foot_strike", "FS": "foot_strike", "IC": "foot_strike",
                 "TO": "foot_off", "FO": "foot_off"}
@@ -57,7 +58,12 @@ class C3dError(ValueError):
 
     def __init__(self, path: str, expected: str, found: str):
         self.path, self.expected, self.found = path, expected, found
-        super().__init__(f"{path}: expected {expected}, found {found}")
+        super().__init__(f"{path}: expected {_clip(expected)}, found {_clip(found)}")
+
+
+def _clip(text: str, limit: int = 300) -> str:
+    """Text for a message: a parser complaint quoting a whole damaged parameter is named by its start."""
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
 
 
 @dataclass(frozen=True)
@@ -190,17 +196,28 @@ def _check_header(path: str, data: bytes) -> None:
 
 
 def _check_data_block(path: str, data: bytes, reader) -> dict[str, int]:
-    points = int(reader.point_used)
+    try:  # py-c3d decodes these on access: a parameter of the wrong type or size raises there, not when parsed
+        points = int(reader.point_used)
+        first, last = int(reader.first_frame), int(reader.last_frame)
+        scale, rate = reader.point_scale, float(reader.point_rate)
+        analog_words = int(reader.analog_used) * int(reader.analog_per_frame)
+        data_block = int(reader.header.data_block)
+    except Exception as err:  # noqa: BLE001 - any failure to decode them is a malformed file
+        raise C3dError(path, "decodable POINT:USED, frame range, POINT:SCALE, ANALOG:USED and ANALOG:RATE / "
+                             "POINT:RATE", f"{type(err).__name__}: {err or 'no message'}") from None
     if points <= 0:
         raise C3dError(path, "POINT:USED > 0 (marker data)", str(points))
-    first, last = int(reader.first_frame), int(reader.last_frame)
+    if not MIN_RATE <= rate <= MAX_RATE:
+        raise C3dError(path, f"POINT:RATE of {MIN_RATE:g} to {MAX_RATE:g} frames per second", f"{rate:g}")
+    if analog_words < 0:
+        raise C3dError(path, "ANALOG:USED x analog samples per frame (ANALOG:RATE / POINT:RATE) >= 0",
+                       f"{int(reader.analog_used)} x {int(reader.analog_per_frame)}")
     frames = last - first + 1
     if frames <= 0:
         raise C3dError(path, "last frame >= first frame", f"frames {first}-{last}")
-    word = 4 if reader.point_scale < 0 else 2
-    analog_words = int(reader.analog_used) * int(reader.analog_per_frame)
+    word = 4 if scale < 0 else 2
     frame_bytes = (4 * points + analog_words) * word
-    start = (int(reader.header.data_block) - 1) * 512
+    start = (data_block - 1) * 512
     needed = start + frames * frame_bytes
     if start < 512 or needed > len(data):
         whole = max(0, (len(data) - start) // frame_bytes)
@@ -214,10 +231,11 @@ def _diagnose(err: Exception) -> tuple[str, str]:
     """(expected, found) for the parser's complaint, in the file's own terms where the message allows."""
     text = str(err)
     m = re.match(r"inconsistent analog rate! (\S+) header != (\S+) analog-fps / (\S+) point-fps", text)
-    if m:
+    if m and all(_is_float(x) for x in m.groups()):
         per, analog, point = (float(x) for x in m.groups())
+        ratio = f"{analog / point:.4g}" if point else "no ratio"
         return (f"the header's analog samples per point frame ({per:g}) = ANALOG:RATE / POINT:RATE",
-                f"{analog:g} / {point:g} = {analog / point:.4g} (the analog and point data cannot both be located)")
+                f"{analog:g} / {point:g} = {ratio} (the analog and point data cannot both be located)")
     m = re.match(r"inconsistent analog count! (\S+) header", text)
     if m:  # py-c3d's message repeats the header count as "analog used": report it without the echo
         return (f"the header's analog words per frame ({m.group(1)}) = ANALOG:USED x analog samples per frame "
@@ -227,6 +245,14 @@ def _diagnose(err: Exception) -> tuple[str, str]:
         return f"the header's {m.group(1)} ({m.group(2)}) in the parameter section", m.group(3)
     return ("a well-formed C3D header and parameter section",
             f"{type(err).__name__}: {text or 'no message'} (while parsing the parameter section)")
+
+
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def _residual_words(path: str, data: bytes, reader, layout: dict[str, int]) -> tuple[np.ndarray, str] | None:

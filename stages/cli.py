@@ -64,23 +64,30 @@ def _cmd_preview(args: argparse.Namespace) -> int:
 
 
 def _cmd_pin(args: argparse.Namespace) -> int:
-    """Rewrite a manifest's ``files:`` list with the sha256 of every file its globs find under the mocap root;
-    every other line (comments included) stays as it is."""
+    """Rewrite a manifest's ``files:`` list with the sha256 of every file its globs find under the mocap root, and
+    its labels table's sha256 (where it names one; rows for files not found and files without a row are warned
+    about); every other line (comments included) stays as it is."""
     from pipeline.io.files import write_text
-    from pipeline.io.manifests import pinned_files, with_files
+    from pipeline.io.manifests import pinned_files, pinned_labels_table, with_files, with_labels_table
 
     path = Path(args.manifest)
     root = Path(args.mocap_root) if args.mocap_root else mocap_root(load_params())
     try:
         files = pinned_files(path, root)
-    except ValueError as err:  # a ManifestError, or no source folder
+        table = pinned_labels_table(path, files)
+    except ValueError as err:  # a ManifestError (of the manifest or its table), or no source folder
         print(err, file=sys.stderr)
         return 2
     text = path.read_text(encoding="utf-8")
     pinned = with_files(text, files)
+    if table is not None:
+        pinned = with_labels_table(pinned, table[0])
+        if table[1] is not None:
+            print(f"warning: {table[1]}".replace("\n", "\nwarning: "), file=sys.stderr)
     if pinned != text:
         write_text(pinned, path)
-    print(f"pinned {len(files)} files in {path}{'' if pinned != text else ' (unchanged)'}")
+    what = f"{len(files)} files" + (f" and the labels table {table[0].path}" if table else "")
+    print(f"pinned {what} in {path}{'' if pinned != text else ' (unchanged)'}")
     return 0
 
 

@@ -47,11 +47,14 @@ def walk_settings(params: dict[str, Any]) -> WalkSettings:
 
 def ingest_config(params: dict[str, Any]) -> IngestConfig:
     from pipeline.ingest.run import IngestConfig
+    from pipeline.ops.floor import FloorConfig
 
     p = params["ingest"]
     return IngestConfig(mocap_root=mocap_root(params), target_fps=float(p["target_fps"]), window=int(p["window"]),
                         stride=int(p["stride"]), min_gait_speed=float(p["min_gait_speed"]),
-                        chunk_frames=int(p["chunk_frames"]))
+                        chunk_frames=int(p["chunk_frames"]),
+                        max_joint_speed=float(p.get("max_joint_speed", IngestConfig.max_joint_speed)),
+                        floor=FloorConfig.from_dict(p.get("floor")))
 
 
 def validation_config(params: dict[str, Any]) -> ValidationConfig:

@@ -84,7 +84,8 @@ CASES = [
               "a sha256 digest (64 lowercase hexadecimal digits)", f"'{PYMO_SHA[:12]}' (12 characters)"),
     Malformed("unknown_key_typo", PYMO, "min_clip_seconds: 2.0", "min_clip_second: 2.0", "min_clip_second",
               "one of the keys ['attribution', 'content_note', 'files', 'format', 'fps', 'gait_contents', 'globs', "
-              "'joint_map', 'joint_map_note', 'joint_map_overrides', 'label_rule', 'licence', 'marker_sets', "
+              "'joint_map', 'joint_map_note', 'joint_map_overrides', 'label_rule', 'labels_table', 'licence', "
+              "'marker_sets', "
               "'max_gap_seconds', 'min_clip_seconds', 'name', 'root_offset', 'root_offset_note', 'title', "
               "'unit_scale_m', 'units', 'up_axis', 'upstream']",
               "unknown key 'min_clip_second' (did you mean 'min_clip_seconds'?)"),
@@ -130,7 +131,8 @@ CASES = [
               "{'hip_centre': 'middle'}"),
     Malformed("c3d_without_marker_sets", C3D, "marker_sets:\n", "marker_set:\n", "marker_set",
               "one of the keys ['attribution', 'content_note', 'files', 'format', 'fps', 'gait_contents', 'globs', "
-              "'joint_map', 'joint_map_note', 'joint_map_overrides', 'label_rule', 'licence', 'marker_sets', "
+              "'joint_map', 'joint_map_note', 'joint_map_overrides', 'label_rule', 'labels_table', 'licence', "
+              "'marker_sets', "
               "'max_gap_seconds', 'min_clip_seconds', 'name', 'root_offset', 'root_offset_note', 'title', "
               "'unit_scale_m', 'units', 'up_axis', 'upstream']", "unknown key 'marker_set' (did you mean 'marker_sets'?)"),
     Malformed("no_globs", PYMO, "globs:\n- demos/data/*.bvh", "globs: []", "globs", "at least 1 item", "[]"),

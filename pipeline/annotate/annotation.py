@@ -37,13 +37,15 @@ class AnnotateConfig:
 
 def rebuild_clips(clip_ids: Sequence[str], starts: np.ndarray, positions: np.ndarray,
                   window: int) -> dict[str, tuple[np.ndarray, list[tuple[int, int]]]]:
-    """{clip_id: (clip positions (T, 21, 3), [(row, first frame), ...])} from overlapping windows."""
+    """{clip_id: (clip positions (T, 21, 3), [(row, first frame), ...])} from overlapping windows; frames count
+    from the clip's first window (a clip cut from the middle of a file starts later in it)."""
     rows_by_clip: dict[str, list[int]] = defaultdict(list)
     for row, cid in enumerate(clip_ids):
         rows_by_clip[cid].append(row)
     clips = {}
     for cid, rows in rows_by_clip.items():
         firsts = [int(starts[r]) for r in rows]
+        firsts = [f - min(firsts) for f in firsts]
         clip = np.zeros((max(firsts) + window, *positions.shape[2:]), dtype=positions.dtype)
         for r, s in zip(rows, firsts):
             clip[s:s + window] = positions[r]

@@ -13,6 +13,7 @@ path, so the output does not depend on where or in which order tasks ran.
 
 from __future__ import annotations
 
+import dataclasses
 from collections import defaultdict
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -22,6 +23,8 @@ from typing import Any
 import numpy as np
 import torch
 
+from pipeline.ops.discontinuities import continuous_spans, pose_jumps
+from pipeline.ops.floor import FloorConfig, fit_floor
 from pipeline.ops.geometry import ground_speed, heading_angle
 from pipeline.ops.kinematics import canonical_positions
 from pipeline.ingest.marker_trials import MarkerMotion, NotUsable, canonical_motion
@@ -50,6 +53,8 @@ class IngestConfig:
     stride: int = 30
     min_gait_speed: float = 0.2  # m/s, mean horizontal root speed below which a clip is not a gait
     chunk_frames: int = 20000  # source frames per dask task (bounds task memory and balances work)
+    max_joint_speed: float = 15.0  # m/s; a joint faster than this between two frames is a discontinuity
+    floor: FloorConfig = field(default_factory=FloorConfig)
 
 
 @dataclass
@@ -61,6 +66,12 @@ class FileRecord:
     reason: str | None = None
     frames_in: int = 0
     gaits: int = 0
+    discontinuities: list[dict[str, Any]] = field(default_factory=list)  # each with its frame and what was done
+    clips: list[dict[str, Any]] = field(default_factory=list)  # per clip made of the file: its floor model
+    window_floor: list[tuple[str, float, float]] = field(default_factory=list)  # per window: content, lowest foot
+    # point (m) with the clip's lowest foot point as the floor (before) and with the modelled floor (after)
+    floor_series: list[tuple[str, np.ndarray, np.ndarray]] = field(default_factory=list)  # per trend clip: its id,
+    # lowest foot point per frame and modelled floor (m, above the clip's lowest foot point), for the report's plot
 
     def report_entry(self) -> dict[str, Any]:
         return {"source": self.source, "path": self.path, "sha256": self.sha256, "reason": self.reason}
@@ -79,6 +90,8 @@ class _Prepared:
     label: Label
     joint_map: dict[str, Any]
     time_offset: float = 0.0  # s from the source clip's start to the first frame used
+    span: tuple[int, int] | None = None  # source frames [first, end) of this part of the clip (between discontinuities)
+    part: str = ""  # appended to the clip id where a file was cut into several clips
 
 
 def plan_chunks(manifests: Sequence[SourceManifest], cfg: IngestConfig) -> list[tuple[SourceManifest, list]]:
@@ -154,11 +167,12 @@ def _read_and_screen(manifest: SourceManifest, source_dir: Path, rel: str, pinne
 
 
 def _gait_label(manifest: SourceManifest, rel: str, rec: FileRecord) -> Label | None:
-    """The file's label, or None after quarantining (no label rule fits) or filtering (content not a gait)."""
+    """The file's label, or None after quarantining (neither a table row nor the label rule gives one) or filtering
+    (content not a gait)."""
     try:
         label = manifest.label(rel)
-    except ValueError as err:
-        _quarantine(rec, f"label rule: {err}")
+    except ValueError as err:  # its message starts with "label rule:" or "labels table:"
+        _quarantine(rec, str(err))
         return None
     if label.content not in manifest.gait_contents:
         _filter(rec, f"content {label.content!r} is not a gait for this source (gait contents: "
@@ -210,9 +224,11 @@ def _windows_from_points(manifest: SourceManifest, skeleton: Skeleton, items: li
         except RetargetError as err:
             _quarantine(item.record, f"retarget: {err}")
             continue
-        root, rot = resample(clip_points[:, 0] * scale, qfix(rotations[bounds[k]:bounds[k + 1]], dim=0),
-                             item.clip.frame_time, cfg.target_fps)
-        clips.append((item, root, rot, scale, leg_m))
+        for part in _continuous_parts(manifest, item, clip_points * scale, skeleton, cfg):
+            a, b = part.span
+            root, rot = resample(clip_points[a:b, 0] * scale, qfix(rotations[bounds[k] + a:bounds[k] + b], dim=0),
+                                 item.clip.frame_time, cfg.target_fps)
+            clips.append((part, root, rot, scale, leg_m))
     if not clips:
         return []
     # Canonical forward kinematics once for all resampled frames of the group.
@@ -229,24 +245,71 @@ def _windows_from_points(manifest: SourceManifest, skeleton: Skeleton, items: li
     return windows
 
 
+def _continuous_parts(manifest: SourceManifest, item: _Prepared, metres: torch.Tensor, skeleton: Skeleton,
+                      cfg: IngestConfig) -> list[_Prepared]:
+    """The clip cut at its pose discontinuities (``pose_jumps`` on the canonical points in metres): the parts long
+    enough for a window, each with its span and time offset; every discontinuity is recorded with its frame and
+    what became of the frames around it (trimmed at an edge, dropped between two, or a cut between two kept parts).
+    A file left with no part is filtered."""
+    rec, frames, dt = item.record, item.clip.frames, item.clip.frame_time
+    needed = max(manifest.min_clip_seconds, (cfg.window - 1) / cfg.target_fps)
+    jumps = pose_jumps(metres, dt, cfg.max_joint_speed)
+    kept, dropped = continuous_spans(frames, jumps, int(np.ceil(needed / dt - 1e-6)) + 1)
+    for j in jumps:
+        before = next(s for s in kept + dropped if s[1] == j.frame + 1)
+        after = next(s for s in kept + dropped if s[0] == j.frame + 1)
+        action = ("cut between two clips" if before in kept and after in kept else
+                  "trimmed at the start" if before == (0, j.frame + 1) and before in dropped else
+                  "trimmed at the end" if after == (j.frame + 1, frames) and after in dropped else
+                  "frames dropped around it")
+        rec.discontinuities.append({"frame": j.frame, "to_frame": j.frame + 1, "joint": skeleton.names[j.joint],
+                                    "speed_mps": round(j.speed, 2), "limit_mps": cfg.max_joint_speed,
+                                    "action": action})
+    if not kept:
+        _filter(rec, f"no part between its {len(jumps)} pose discontinuities (a joint faster than "
+                     f"{cfg.max_joint_speed:g} m/s between frames) lasts {needed:.2f} s")
+        return []
+    return [dataclasses.replace(item, span=(a, b), time_offset=item.time_offset + a * dt,
+                                part="" if len(kept) == 1 else f"@{n + 1}") for n, (a, b) in enumerate(kept)]
+
+
 def _windows_of_clip(manifest: SourceManifest, skeleton: Skeleton, item: _Prepared, root: torch.Tensor,
                      rot: torch.Tensor, pos: torch.Tensor, heading: torch.Tensor, scale: float, leg_m: float,
                      cfg: IngestConfig) -> list[dict[str, Any]]:
     rec = item.record
-    # Floor: the lowest foot point of the clip is the ground (y = 0).
-    floor = float(pos[:, list(skeleton.foot_joints), 1].min())
+    stem = Path(rec.path).with_suffix("").as_posix()
+    clip_id = f"{manifest.name}/{stem}{item.part}"
+    bad = ~torch.isfinite(pos).all(dim=(1, 2))
+    if bad.any():  # a degenerate rig (e.g. a bone of zero length) solved to NaN: nothing downstream can use it
+        f = int(bad.nonzero()[0])
+        _quarantine(rec, f"retarget: expected finite joint positions, found non-finite ones in {int(bad.sum())} "
+                         f"of {len(bad)} resampled frames of {clip_id} (the first: frame {f})")
+        return []
+    # Floor: followed along the clip (ops/floor: level where it is, the clip's lowest foot point; a trend where
+    # the capture floor tilts or the root height drifts); y = 0 on it.
+    feet = pos[:, list(skeleton.foot_joints), 1]
+    lowest = feet.min(dim=1).values.double().numpy()
+    model = fit_floor(lowest, root[:, [0, 2]].double().numpy(), cfg.target_fps, cfg.floor)
+    rec.clips.append({"clip_id": clip_id, **model.report()})
+    if model.residual_m > cfg.floor.tolerance_m:
+        _unless_ingested(rec, f"floor not modelled: the stance samples lie {100 * model.residual_m:.1f} cm from "
+                              f"the {model.kind} floor model (median; tolerance {100 * cfg.floor.tolerance_m:g} cm)")
+        return []
+    floor = torch.from_numpy(model.heights).to(pos.dtype)
+    before = float(lowest.min())
+    if model.kind == "trend":
+        rec.floor_series.append((clip_id, (lowest - before).astype(np.float32),
+                                 (model.heights - before).astype(np.float32)))
     pos = pos.clone()
-    pos[..., 1] -= floor
+    pos[..., 1] -= floor[:, None] if model.kind == "trend" else float(model.heights[0])
     root = root.clone()
-    root[:, 1] -= floor
+    root[:, 1] -= floor if model.kind == "trend" else float(model.heights[0])
     step = ground_speed(root)
     speed = float(step.mean()) * cfg.target_fps if step.numel() else 0.0
     if speed < cfg.min_gait_speed:
-        _filter(rec, f"not a gait: mean horizontal root speed {speed:.2f} m/s < {cfg.min_gait_speed} m/s")
+        _unless_ingested(rec, f"not a gait: mean horizontal root speed {speed:.2f} m/s < {cfg.min_gait_speed} m/s")
         return []
     starts = window_starts(root.shape[0], cfg.window, cfg.stride)
-    stem = Path(rec.path).with_suffix("").as_posix()
-    clip_id = f"{manifest.name}/{stem}"
     label = item.label
     out = []
     for w, s in enumerate(starts):
@@ -272,8 +335,10 @@ def _windows_of_clip(manifest: SourceManifest, skeleton: Skeleton, item: _Prepar
             "root_path": root[s:e][:, [0, 2]].to(torch.float32).numpy(),
             "heading": heading[s:e].to(torch.float32).numpy(),
         })
-    rec.gaits = len(out)
-    rec.status = "ingested"
+    rec.window_floor.extend((label.content, float(feet[s:s + cfg.window].min()) - before,
+                             float(pos[s:s + cfg.window, list(skeleton.foot_joints), 1].min())) for s in starts)
+    rec.gaits += len(out)
+    rec.status, rec.reason = "ingested", None
     return out
 
 
@@ -285,10 +350,19 @@ def _filter(rec: FileRecord, reason: str) -> None:
     rec.status, rec.reason = "filtered", reason
 
 
+def _unless_ingested(rec: FileRecord, reason: str) -> None:
+    """Filter a file for one of its clips, unless another clip of it was ingested (the reason stays with that
+    clip's entry)."""
+    rec.clips[-1]["filtered"] = reason
+    if rec.status != "ingested":
+        _filter(rec, reason)
+
+
 def run_ingest(manifests: Sequence[SourceManifest], skeleton: Skeleton, cfg: IngestConfig,
-               scheduler_address: str | None = None, workers: int | None = None,
-               progress: bool = True) -> tuple[list[dict[str, Any]], dict[str, Any]]:
-    """Ingest every input of every manifest. Returns (windows sorted by id, report)."""
+               scheduler_address: str | None = None, workers: int | None = None, progress: bool = True,
+               floor_series: bool = False) -> tuple:
+    """Ingest every input of every manifest. Returns (windows sorted by id, report), and with ``floor_series`` the
+    trend clips' (clip id, lowest foot point per frame, floor) as a third element (for the report's plot)."""
     import dask
 
     chunks = plan_chunks(manifests, cfg)
@@ -311,25 +385,33 @@ def run_ingest(manifests: Sequence[SourceManifest], skeleton: Skeleton, cfg: Ing
             results = dask.compute(*tasks, scheduler="processes", num_workers=workers)
     records = sorted((r for res in results for r in res.records), key=lambda r: (r.source, r.path))
     windows = sorted((w for res in results for w in res.windows), key=lambda w: w["gait_id"])
-    return windows, build_report(records, windows, cfg)
+    report = build_report(records, windows, cfg, manifests)
+    return (windows, report, [f for r in records for f in r.floor_series]) if floor_series else (windows, report)
 
 
-def build_report(records: Sequence[FileRecord], windows: Sequence[dict[str, Any]], cfg: IngestConfig) -> dict:
+def build_report(records: Sequence[FileRecord], windows: Sequence[dict[str, Any]], cfg: IngestConfig,
+                 manifests: Sequence[SourceManifest] = ()) -> dict:
+    """Counts per status and source, every quarantined and filtered file with its reason, the floor and the
+    discontinuities; for a source with a labels table (of ``manifests``), its ``labels_table`` entry."""
     by_status: dict[str, list[FileRecord]] = defaultdict(list)
     for r in records:
         by_status[r.status].append(r)
     unknown = set(by_status) - {"ingested", "quarantined", "filtered"}
     if unknown:  # a file fell through every branch: a bug, never silently dropped
         raise AssertionError(f"files with no outcome: {[r.path for s in unknown for r in by_status[s]]}")
-    per_source: dict[str, dict[str, int]] = {}
+    per_source: dict[str, dict[str, Any]] = {}
+    counts = ("files_seen", "files_ingested", "files_quarantined", "files_filtered", "clips", "gaits", "frames_in")
     for r in records:
-        s = per_source.setdefault(r.source, {"files_seen": 0, "files_ingested": 0, "files_quarantined": 0,
-                                             "files_filtered": 0, "clips": 0, "gaits": 0, "frames_in": 0})
+        s = per_source.setdefault(r.source, dict.fromkeys(counts, 0))
         s["files_seen"] += 1
         s[f"files_{r.status}"] += 1
         s["frames_in"] += r.frames_in
         s["gaits"] += r.gaits
         s["clips"] += r.status == "ingested"
+    for m in manifests:
+        if m.labels is not None:
+            per_source.setdefault(m.name, dict.fromkeys(counts, 0))["labels_table"] = labels_table_report(
+                m, [r for r in records if r.source == m.name])
     labelled = sum(w["emotion"] is not None for w in windows)
     return {
         "files_seen": len(records),
@@ -346,7 +428,64 @@ def build_report(records: Sequence[FileRecord], windows: Sequence[dict[str, Any]
         "per_source": per_source,
         "quarantine": [r.report_entry() for r in by_status["quarantined"]],
         "filtered": [r.report_entry() for r in by_status["filtered"]],
+        "floor": floor_report(records, cfg),
+        "discontinuities": {
+            "limit_mps": cfg.max_joint_speed,
+            "count": sum(len(r.discontinuities) for r in records),
+            "events": [{"source": r.source, "path": r.path, **d} for r in records for d in r.discontinuities]},
     }
+
+
+def labels_table_report(manifest: SourceManifest, records: Sequence[FileRecord]) -> dict[str, Any]:
+    """What a source's labels table covers of its inputs (``records``: one per input, pinned or found): the rows
+    for no input or for a pinned file that is missing, and the inputs without a row (labelled by the label rule,
+    or quarantined where the manifest has none)."""
+    table = manifest.labels
+    assert table is not None
+    missing = {r.path for r in records if r.sha256 is None}  # pinned, but no file in the source folder
+    unused, unrowed = table.coverage(r.path for r in records)
+    rows_without_file = sorted(
+        [{"line": line, "file": f, "why": "neither pinned nor found by the globs"} for line, f in unused]
+        + [{"line": line, "file": f, "why": "pinned, but no file is in the source folder"}
+           for f, (line, _) in table.rows.items() if f in missing], key=lambda e: e["line"])
+    return {"path": table.path, "sha256": table.sha256, "rows": len(table.rows),
+            "files_with_row": len(records) - len(unrowed), "rows_without_file": rows_without_file,
+            "files_without_row": unrowed,
+            "files_without_row_get": "the label rule's label" if manifest.doc.get("label_rule") is not None else
+            "quarantined (no label rule)"}
+
+
+def _heights_summary(metres: Sequence[float], tolerance_m: float) -> dict[str, Any]:
+    v = np.asarray(metres, dtype=np.float64)
+    if not len(v):
+        return {"windows": 0}
+    p1, p50, p99 = np.percentile(v, [1, 50, 99]) * 100
+    return {"windows": len(v), "within_tolerance": round(float(np.mean(np.abs(v) <= tolerance_m)), 4),
+            "p1_cm": round(float(p1), 2), "median_cm": round(float(p50), 2), "p99_cm": round(float(p99), 2)}
+
+
+def floor_report(records: Sequence[FileRecord], cfg: IngestConfig) -> dict[str, Any]:
+    """Per source: the lowest foot point of every walk window (it should be on the floor) with the clip's lowest
+    foot point as the floor (before) and with the modelled floor (after), and the floor models; per clip: its
+    model (level or trend, drift, tilt, residual)."""
+    tolerance = cfg.floor.tolerance_m
+    per_source: dict[str, Any] = {}
+    for source in sorted({r.source for r in records}):
+        mine = [r for r in records if r.source == source]
+        walks = [w for r in mine for w in r.window_floor if w[0].startswith("walk")]
+        kinds = [c["floor"] for r in mine for c in r.clips]
+        per_source[source] = {
+            "walk_windows_before": _heights_summary([w[1] for w in walks], tolerance),
+            "walk_windows_after": _heights_summary([w[2] for w in walks], tolerance),
+            "clips": {k: kinds.count(k) for k in ("level", "trend")},
+            "clips_not_modelled": sum("floor not modelled" in c.get("filtered", "") for r in mine for c in r.clips),
+            "largest_drift_cm": max((c["drift_cm"] for r in mine for c in r.clips), default=0.0)}
+    walks = [w for r in records for w in r.window_floor if w[0].startswith("walk")]
+    return {"tolerance_cm": round(100 * tolerance, 2), "level_cm": round(100 * cfg.floor.level_m, 2),
+            "walk_windows_before": _heights_summary([w[1] for w in walks], tolerance),
+            "walk_windows_after": _heights_summary([w[2] for w in walks], tolerance),
+            "per_source": per_source,
+            "clips": [{"source": r.source, "path": r.path, **c} for r in records for c in r.clips]}
 
 
 

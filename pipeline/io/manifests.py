@@ -3,17 +3,22 @@
 Adding a mocap source means adding a manifest under ``manifests/sources/``; nothing here names a source.
 Every manifest is checked against the schema below when it is loaded: a malformed one raises ``ManifestError``,
 which names the file, the line, the key (a dotted path such as ``label_rule.emotions[0].emotion``), what was
-expected and what was found, before any data is read. This module knows YAML and file layout, never the data
-inside the mocap files.
+expected and what was found, before any data is read. A source's labels come from its file names (``label_rule``),
+from a side table with one row per file (``labels_table``, a CSV checked the same way: file, line, column,
+expected, found), or both. This module knows YAML, CSV and file layout, never the data inside the mocap files.
 """
 
 from __future__ import annotations
 
+import csv
 import difflib
 import fnmatch
+import io
+import math
 import os
 import re
 import types
+import warnings
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,8 +28,8 @@ import yaml
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, model_validator
 from pydantic_core import PydanticCustomError
 
-from pipeline.core.emotions import SOURCE_LABEL_METHODS
-from pipeline.io.files import sha256_file
+from pipeline.core.emotions import EMOTIONS, SOURCE_LABEL_METHODS
+from pipeline.io.files import sha256_bytes, sha256_file
 
 AXES_TO_Y_UP = {
     # Rows map source (x, y, z) to canonical (x, y, z), right-handed, Y up.
@@ -35,6 +40,9 @@ FORMATS = ("bvh", "c3d")  # the readers under pipeline/io/readers
 CONTACT_POINTS = ("left_heel", "left_toe", "right_heel", "right_toe")  # a marker set's `contacts` keys
 PELVIS_POINTS = ("left_asis", "right_asis", "sacrum")  # a marker set's `pelvis` keys
 WEIGHT_TOLERANCE = 1e-9  # affine weights must sum to 1 within this (as retargeting and the marker rules check)
+EMOTION_TOLERANCE = 1e-6  # emotion weights must sum to 1 within this (a table's 0.333333 x 3 passes)
+LABEL_COLUMNS = ("file", "content", "style", *EMOTIONS, "label_method", "description")  # a labels table's columns
+OPTIONAL_LABEL_COLUMNS = ("description",)
 
 
 # --------------------------------------------------------------------------------------------------------------
@@ -160,10 +168,16 @@ def _hex(digits: int, what: str):
     return check
 
 
-def _relative_path(value: str) -> str:
-    if not value.strip() or value.startswith("/") or ".." in value.split("/"):
-        raise _bad("a path relative to the source folder (not empty, no leading '/', no '..')", _show(value))
-    return value
+def _relative_to(folder: str):
+    def check(value: str) -> str:
+        if not value.strip() or value.startswith("/") or ".." in value.split("/"):
+            raise _bad(f"a path relative to {folder} (not empty, no leading '/', no '..')", _show(value))
+        return value
+
+    return check
+
+
+_relative_path = _relative_to("the source folder")
 
 
 def _file_url(value: str) -> str:
@@ -191,7 +205,7 @@ def _non_negative(value: float) -> float:
 
 
 def _emotion(value: list[float]) -> list[float]:
-    if len(value) != 4 or any(v < 0 for v in value) or abs(sum(value) - 1.0) > 1e-6:
+    if len(value) != 4 or any(v < 0 for v in value) or abs(sum(value) - 1.0) > EMOTION_TOLERANCE:
         raise _bad("4 non-negative weights (happy, sad, angry, neutral) summing to 1", str(value))
     return value
 
@@ -214,9 +228,30 @@ class Upstream(_Schema):
     file_url: Annotated[str, AfterValidator(_file_url)]
 
 
+Sha256 = Annotated[str, AfterValidator(_hex(64, "a sha256 digest"))]
+
+
 class PinnedFile(_Schema):
     path: RelativePath
-    sha256: Annotated[str, AfterValidator(_hex(64, "a sha256 digest"))]
+    sha256: Sha256
+
+
+class LabelsTableRef(_Schema):
+    """``labels_table``: a CSV with one row per file, beside the manifest or below its folder (so the pipeline's
+    dependency on the manifests folder covers it), pinned by sha256 (``emogait pin`` writes it; a table that no
+    longer matches its pin stops the manifest from loading).
+
+    Columns (header row, any order): ``file`` (path relative to the source folder, as ``files:`` names it),
+    ``content``, ``style``, one weight column per emotion in ``EMOTIONS`` order (happy, sad, angry, neutral):
+    four numbers >= 0 summing to 1, or all four empty for an unlabelled file, then ``label_method`` (one of
+    ``SOURCE_LABEL_METHODS``; empty exactly when the weights are), and ``description`` (free text, optional).
+    A file's row overrides the label rule for that file; a file without a row gets the label rule's label, or,
+    where the manifest has no label rule, is quarantined at ingest. Rows for files the source does not have and
+    files without a row are reported (warnings on load, the ingest report's ``labels_table`` per source).
+    """
+
+    path: Annotated[str, AfterValidator(_relative_to("the manifest's folder"))]
+    sha256: Sha256 | None = None  # required when the manifest is loaded; `emogait pin` fills it in
 
 
 class EmotionRule(_Schema):
@@ -260,7 +295,12 @@ class MarkerSet(_Schema):
 
 
 class SourceSpec(_Schema):
-    """One source manifest (manifests/sources/<name>.yaml). Keys ending in ``_note`` are free text for people."""
+    """One source manifest (manifests/sources/<name>.yaml). Keys ending in ``_note`` are free text for people.
+
+    Labels: ``label_rule`` (a file-name regex; conditions on its groups give the emotion) and/or ``labels_table``
+    (a CSV, one row per file; see ``LabelsTableRef``). At least one is required; where both are given, a file's
+    table row wins and the rule labels the files without a row.
+    """
 
     name: Annotated[str, AfterValidator(_source_name)]
     title: Text
@@ -278,7 +318,8 @@ class SourceSpec(_Schema):
     joint_map: JointMap | None = None
     joint_map_overrides: dict[str, JointMap] = {}
     joint_map_note: Text | None = None
-    label_rule: LabelRule
+    label_rule: LabelRule | None = None
+    labels_table: LabelsTableRef | None = None
     gait_contents: Annotated[list[Text], Field(min_length=1)]
     content_note: Text | None = None
     min_clip_seconds: Seconds = 0.0
@@ -288,6 +329,9 @@ class SourceSpec(_Schema):
 
     @model_validator(mode="after")
     def _consistent(self) -> SourceSpec:
+        if self.label_rule is None and self.labels_table is None:
+            raise _bad("a label rule (label_rule), a labels table (labels_table) or both", "no such key",
+                       sub=("label_rule",))
         if self.format == "bvh" and self.joint_map is None:
             raise _bad("a joint map (a BVH source maps its joints onto the canonical ones)", "no such key",
                        sub=("joint_map",))
@@ -319,16 +363,30 @@ class Problem:
     found: str
 
 
+def _described(path: str, problems: Sequence[Problem]) -> str:
+    return "\n".join(f"{path}{f':{p.line}' if p.line else ''}: {p.key}: expected {p.expected}, found {p.found}"
+                     for p in problems)
+
+
 class ManifestError(ValueError):
-    """A manifest that does not follow the schema. ``str(err)``: one line per problem,
-    ``<file>:<line>: <key>: expected <...>, found <...>``; the first problem's parts are attributes."""
+    """A manifest (or its labels table) that does not follow the schema. ``str(err)``: one line per problem,
+    ``<file>:<line>: <key>: expected <...>, found <...>``; the first problem's parts are attributes. In a labels
+    table the key is the column (``happy+sad+angry+neutral`` for the weights' sum)."""
 
     def __init__(self, path: str | Path, problems: Sequence[Problem]):
         self.path, self.problems = str(path), list(problems)
         first = self.problems[0]
         self.key, self.line, self.expected, self.found = first.key, first.line, first.expected, first.found
-        super().__init__("\n".join(f"{self.path}{f':{p.line}' if p.line else ''}: {p.key}: "
-                                   f"expected {p.expected}, found {p.found}" for p in self.problems))
+        super().__init__(_described(self.path, self.problems))
+
+
+class ManifestWarning(UserWarning):
+    """Something that does not stop a run but is likely a mistake: a labels-table row for a file the manifest does
+    not pin, pinned files without a row. ``str``: as ManifestError's."""
+
+    def __init__(self, path: str | Path, problems: Sequence[Problem]):
+        self.path, self.problems = str(path), list(problems)
+        super().__init__(_described(self.path, self.problems))
 
 
 def _key(part: Any) -> str:
@@ -443,8 +501,9 @@ class _Lines:
 
 
 def check_manifest(text: str, path: str | Path, *, pins: bool = True) -> dict[str, Any]:
-    """The manifest's document, checked against the schema; raises ManifestError. ``pins=False`` leaves the
-    ``files:`` list unchecked (``emogait pin`` rewrites it)."""
+    """The manifest's document, checked against the schema, its labels table there (and, with pins, matching its
+    pinned sha256); raises ManifestError. ``pins=False`` leaves the ``files:`` list and the table's sha256
+    unchecked (``emogait pin`` rewrites them). The table's rows are checked by ``read_labels_table``."""
     path = Path(path)
     try:
         doc = yaml.safe_load(text)
@@ -457,16 +516,189 @@ def check_manifest(text: str, path: str | Path, *, pins: bool = True) -> dict[st
         raise ManifestError(path, [Problem("(document)", 1, "a mapping of manifest keys", _show(doc))])
     problems = [Problem(_dotted(loc), repeated, f"each key once (first at line {first})", f"{_key(loc[-1])} again")
                 for loc, first, repeated in lines.duplicates]
+    checked = {k: v for k, v in doc.items() if pins or k != "files"}
+    if not pins and isinstance(doc.get("labels_table"), dict):
+        checked["labels_table"] = {k: v for k, v in doc["labels_table"].items() if k != "sha256"}
     try:
-        SourceSpec.model_validate({k: v for k, v in doc.items() if pins or k != "files"})
+        SourceSpec.model_validate(checked)
     except ValidationError as err:
         problems += [_problem(e, lines) for e in err.errors(include_url=False)]
     if not problems and doc["name"] != path.stem:
         problems.append(Problem("name", lines.line(["name"]), f"{path.stem!r} (the manifest's file name)",
                                 _show(doc["name"])))
+    if not problems and doc.get("labels_table") is not None:
+        problems += _table_pin_problems(doc["labels_table"], path, lines, pins)
     if problems:
         raise ManifestError(path, problems)
     return doc
+
+
+def _table_pin_problems(ref: dict[str, Any], path: Path, lines: _Lines, pins: bool) -> list[Problem]:
+    """The labels table is a file; with ``pins``, its sha256 is pinned and matches it."""
+    table = path.parent / ref["path"]
+    if not table.is_file():
+        return [Problem("labels_table.path", lines.line(["labels_table", "path"]),
+                        f"a labels table (CSV) at {table}", "no such file")]
+    if not pins:
+        return []
+    if "sha256" not in ref:
+        return [Problem("labels_table.sha256", lines.line(["labels_table"]),
+                        f"the table's sha256 (`emogait pin {path}` writes it)", "no such key")]
+    found = sha256_file(table)
+    if found != ref["sha256"]:
+        return [Problem("labels_table.sha256", lines.line(["labels_table", "sha256"]),
+                        f"{ref['sha256']} (the pinned sha256 of {table})",
+                        f"{found} (the table changed since it was pinned: review it, then `emogait pin {path}`)")]
+    return []
+
+
+# --------------------------------------------------------------------------------------------------------------
+# Labels tables: one CSV row per file (``labels_table``).
+
+
+@dataclass(frozen=True)
+class LabelsTable:
+    """A source's labels table, read and checked. ``rows``: source-relative file path -> (the CSV line of its
+    row, its label)."""
+
+    path: str  # as the manifest names it (relative to the manifest's folder)
+    file: Path  # where it was read
+    sha256: str
+    rows: dict[str, tuple[int, Label]]
+
+    def coverage(self, files: Iterable[str]) -> tuple[list[tuple[int, str]], list[str]]:
+        """(rows naming none of ``files``: (line, file), by line; the ``files`` without a row, sorted)."""
+        files = set(files)
+        return (sorted((line, f) for f, (line, _) in self.rows.items() if f not in files),
+                sorted(files - set(self.rows)))
+
+
+def _rows(text: str) -> Iterable[tuple[int, list[str]]]:
+    """(first line, fields) of each non-blank CSV record; a quoted field may span lines."""
+    reader = csv.reader(io.StringIO(text, newline=""))
+    start = reader.line_num + 1
+    for fields in reader:
+        if any(f.strip() for f in fields):
+            yield start, fields
+        start = reader.line_num + 1
+
+
+def _header_problems(header: list[str], line: int) -> list[Problem]:
+    problems, first = [], {}
+    for k, column in enumerate(header):
+        if column in first:
+            problems.append(Problem(_key(column), line, f"each column once (first as column {first[column] + 1})",
+                                    f"{column} again"))
+        elif column not in LABEL_COLUMNS:
+            close = difflib.get_close_matches(column, LABEL_COLUMNS, n=1)
+            problems.append(Problem(_key(column), line, f"one of the columns {list(LABEL_COLUMNS)}",
+                                    f"unknown column {column!r}" + (f" (did you mean {close[0]!r}?)" if close else "")))
+        first.setdefault(column, k)
+    problems += [Problem(c, line, "a column (a required column)", "no such column")
+                 for c in LABEL_COLUMNS if c not in first and c not in OPTIONAL_LABEL_COLUMNS]
+    return problems
+
+
+def _row_label(cells: dict[str, str], line: int, problems: list[Problem]) -> Label | None:
+    """The label a row gives; None after adding its problems."""
+    before = len(problems)
+    for column in ("content", "style"):
+        if not cells[column]:
+            problems.append(Problem(column, line, "a non-empty string", "an empty value"))
+    method = cells["label_method"]
+    weights = [cells[e] for e in EMOTIONS]
+    emotion = None
+    if not any(weights):
+        if method:
+            problems.append(Problem("label_method", line, "an empty value (the row has no emotion weights: "
+                                    "unlabelled)", _show(method)))
+    elif not all(weights):
+        empty = next(e for e, w in zip(EMOTIONS, weights) if not w)
+        problems.append(Problem(empty, line, f"a number (the weight columns {'+'.join(EMOTIONS)} are all numbers "
+                                "or all empty)", "an empty value"))
+    else:
+        values = []
+        for name, text in zip(EMOTIONS, weights):
+            try:
+                value = float(text)
+            except ValueError:
+                value = math.nan
+            if not math.isfinite(value):
+                problems.append(Problem(name, line, "a number", _show(text)))
+            elif value < 0:
+                problems.append(Problem(name, line, "a weight >= 0", text))
+            values.append(value)
+        if len(problems) == before and abs(sum(values) - 1.0) > EMOTION_TOLERANCE:
+            problems.append(Problem("+".join(EMOTIONS), line, "weights summing to 1",
+                                    f"{' + '.join(weights)} = {sum(values):g}"))
+        if method not in SOURCE_LABEL_METHODS:
+            problems.append(Problem("label_method", line, " or ".join(map(repr, SOURCE_LABEL_METHODS)),
+                                    _show(method) if method else "an empty value"))
+        emotion = tuple(values)
+    if len(problems) > before:
+        return None
+    return Label(content=cells["content"], style=cells["style"], emotion=emotion, label_method=method or None,
+                 fields={}, description=cells.get("description") or None)
+
+
+def read_labels_table(file: Path, name: str) -> LabelsTable:
+    """A labels table (see ``LabelsTableRef``), every row checked; ``name``: the path as the manifest gives it.
+    Raises ManifestError naming the CSV file, the line, the column, what was expected and what was found."""
+    data = file.read_bytes()
+    try:
+        text = data.decode("utf-8-sig")  # a byte-order mark is what spreadsheet programs write
+    except UnicodeDecodeError as err:
+        raise ManifestError(file, [Problem("(table)", data.count(b"\n", 0, err.start) + 1, "UTF-8 text",
+                                           f"the byte {data[err.start]:#04x}")]) from None
+    try:
+        records = list(_rows(text))
+    except csv.Error as err:
+        raise ManifestError(file, [Problem("(table)", None, "CSV text", str(err))]) from None
+    if not records:
+        raise ManifestError(file, [Problem("(header)", 1, f"a header row naming the columns {list(LABEL_COLUMNS)}",
+                                           "an empty table")])
+    line, header = records[0]
+    header = [c.strip() for c in header]
+    problems = _header_problems(header, line)
+    if problems:
+        raise ManifestError(file, problems)
+    rows: dict[str, tuple[int, Label]] = {}
+    for line, fields in records[1:]:
+        if len(fields) != len(header):
+            problems.append(Problem("(row)", line, f"{len(header)} fields, one per column of the header",
+                                    f"{len(fields)} fields"))
+            continue
+        cells = {c: v.strip() for c, v in zip(header, fields)}
+        path = cells["file"]
+        try:
+            _relative_path(path)
+        except PydanticCustomError as err:
+            problems.append(Problem("file", line, err.context["expected"], err.context["found"]))
+            continue
+        if path in rows:
+            problems.append(Problem("file", line, f"one row per file (first at line {rows[path][0]})",
+                                    f"{path!r} again"))
+            continue
+        label = _row_label(cells, line, problems)
+        if label is not None:
+            rows[path] = (line, label)
+    if problems:
+        raise ManifestError(file, problems)
+    return LabelsTable(path=name, file=file, sha256=sha256_bytes(data), rows=rows)
+
+
+def _coverage_problems(table: LabelsTable, files: Iterable[str], fallback: bool, pinned: str) -> list[Problem]:
+    """Rows for files not among ``files`` (described by ``pinned``), and ``files`` without a row (10 named)."""
+    unused, unrowed = table.coverage(files)
+    problems = [Problem("file", line, f"a file {pinned}", f"{path!r}, which it does not have (the row labels "
+                        "nothing)") for line, path in unused]
+    if unrowed:
+        named = ", ".join(map(repr, unrowed[:10])) + (f" and {len(unrowed) - 10} more" if len(unrowed) > 10 else "")
+        problems.append(Problem("file", None, f"a row for each file {pinned}",
+                                f"none for {len(unrowed)}: {named} ("
+                                + ("they get the label rule's label)" if fallback else
+                                   "no label rule to fall back on: quarantined at ingest)")))
+    return problems
 
 
 # --------------------------------------------------------------------------------------------------------------
@@ -485,7 +717,8 @@ class Label:
     style: str
     emotion: tuple[float, float, float, float] | None
     label_method: str | None
-    fields: dict[str, str]
+    fields: dict[str, str]  # the label rule's named fields (pattern groups and fixed); {} for a table row
+    description: str | None = None  # a table row's free text
 
 
 @dataclass(frozen=True)
@@ -494,6 +727,7 @@ class SourceManifest:
     format: str
     doc: dict[str, Any]  # as written in the file, checked against SourceSpec
     files: tuple[FileEntry, ...]
+    labels: LabelsTable | None = None  # the labels table, where the manifest names one
 
     @property
     def globs(self) -> list[str]:
@@ -537,12 +771,18 @@ class SourceManifest:
         return self.doc["upstream"]["file_url"].format(path=rel_path)
 
     def label(self, rel_path: str) -> Label:
-        """Content, style and emotion from the file name, by the manifest's rule. Raises ValueError."""
-        rule = self.doc["label_rule"]
+        """Content, style and emotion: the file's row of the labels table, else from the file name by the label
+        rule. Raises ValueError (its message says which of the two failed)."""
+        if self.labels is not None and rel_path in self.labels.rows:
+            return self.labels.rows[rel_path][1]
+        rule = self.doc.get("label_rule")
+        if rule is None:  # the schema requires a rule or a table: this manifest has a table
+            raise ValueError(f"labels table: no row for {rel_path!r} in {self.labels.file} and no label rule to "
+                             f"fall back on; add a row for it")
         name = Path(rel_path).name
         match = re.match(rule["pattern"], name)
         if match is None:
-            raise ValueError(f"file name {name!r} does not match the label pattern {rule['pattern']!r}")
+            raise ValueError(f"label rule: file name {name!r} does not match the label pattern {rule['pattern']!r}")
         fields = {k: v for k, v in match.groupdict().items() if v is not None}
         fields.update(rule.get("fixed", {}))
         content = rule.get("content_map", {}).get(fields.get("content", "unknown"), fields.get("content", "unknown"))
@@ -557,10 +797,20 @@ class SourceManifest:
 
 
 def load_manifest(path: str | Path) -> SourceManifest:
-    """A source manifest, checked against the schema (ManifestError names the file, line, key, expected, found)."""
-    doc = check_manifest(Path(path).read_text(encoding="utf-8"), path)
+    """A source manifest, checked against the schema (ManifestError names the file, line, key, expected, found),
+    with its labels table read and checked. Rows for files the manifest does not pin and pinned files without a
+    row are a ``ManifestWarning`` (ingest reports them again, against the files it finds)."""
+    path = Path(path)
+    doc = check_manifest(path.read_text(encoding="utf-8"), path)
     files = tuple(FileEntry(f["path"], f["sha256"]) for f in doc.get("files", []))
-    return SourceManifest(name=doc["name"], format=doc["format"], doc=doc, files=files)
+    labels = None
+    if doc.get("labels_table") is not None:
+        labels = read_labels_table(path.parent / doc["labels_table"]["path"], doc["labels_table"]["path"])
+        problems = _coverage_problems(labels, (f.path for f in files), doc.get("label_rule") is not None,
+                                      f"the manifest pins (files: in {path})")
+        if problems:
+            warnings.warn(ManifestWarning(labels.file, problems), stacklevel=2)
+    return SourceManifest(name=doc["name"], format=doc["format"], doc=doc, files=files, labels=labels)
 
 
 def load_manifests(folder: str | Path, formats: Sequence[str]) -> list[SourceManifest]:
@@ -659,16 +909,43 @@ def pinned_files(manifest_path: str | Path, mocap_root: Path) -> list[FileEntry]
     return entries
 
 
+def pinned_labels_table(manifest_path: str | Path,
+                        files: Sequence[FileEntry]) -> tuple[FileEntry, ManifestWarning | None] | None:
+    """The manifest's labels table (its path as the manifest names it, its sha256) and, if any, a warning naming
+    its rows for none of ``files`` (those being pinned) and the ``files`` without a row; None when the manifest
+    names no table. The manifest is checked first (all but its pins), then every row: a bad table is not pinned.
+    """
+    manifest_path = Path(manifest_path)
+    doc = check_manifest(manifest_path.read_text(encoding="utf-8"), manifest_path, pins=False)
+    ref = doc.get("labels_table")
+    if ref is None:
+        return None
+    table = read_labels_table(manifest_path.parent / ref["path"], ref["path"])
+    problems = _coverage_problems(table, (f.path for f in files), doc.get("label_rule") is not None,
+                                  f"the globs find (under the source folder of {manifest_path})")
+    return FileEntry(ref["path"], table.sha256), ManifestWarning(table.file, problems) if problems else None
+
+
 def with_files(text: str, files: Sequence[FileEntry]) -> str:
     """The manifest text with its top-level ``files:`` block replaced (appended when it has none).
 
     The block is the ``files:`` line and the lines under it (indented or list items); comment and blank lines
     right after it belong to what follows and stay.
     """
-    block = yaml.safe_dump({"files": [{"path": f.path, "sha256": f.sha256} for f in files]}, sort_keys=False,
-                           width=120, allow_unicode=True)
+    return _with_block(text, "files", [{"path": f.path, "sha256": f.sha256} for f in files])
+
+
+def with_labels_table(text: str, table: FileEntry) -> str:
+    """The manifest text with its top-level ``labels_table:`` block replaced by the table's path and sha256
+    (comments inside that block are not kept); every other byte stays."""
+    return _with_block(text, "labels_table", {"path": table.path, "sha256": table.sha256})
+
+
+def _with_block(text: str, key: str, value: Any) -> str:
+    """``key: value`` (block style) in place of the top-level ``key:`` block, or appended where there is none."""
+    block = yaml.safe_dump({key: value}, sort_keys=False, width=120, allow_unicode=True)
     lines = text.splitlines(keepends=True)
-    start = next((k for k, line in enumerate(lines) if re.match(r"files\s*:", line)), None)
+    start = next((k for k, line in enumerate(lines) if re.match(rf"{key}\s*:", line)), None)
     if start is None:
         return text + ("" if not text or text.endswith("\n") else "\n") + block
     stop = start + 1

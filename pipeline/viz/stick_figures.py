@@ -227,3 +227,30 @@ def preview_gaits(windows: Sequence[dict], skeleton: Skeleton) -> list[Motion]:
             picked[w["source"]] = w
     return [Motion(f"{w['gait_id'].split('/')[0]}\n{w['style']} {w['content']}", w["positions"], skeleton.parents,
                    skeleton.names) for w in picked.values()]
+
+
+def render_floor_models(series: Sequence[tuple[str, np.ndarray, np.ndarray]], fps: float, out: Path,
+                        limit: int = 6) -> None:
+    """The clips whose floor drifts most (``series``: clip id, lowest foot point per frame, modelled floor; metres
+    above the clip's lowest foot point): raw heights with the floor model above, corrected heights below."""
+    chosen = sorted(series, key=lambda s: -float(np.ptp(s[2])))[:limit]
+    fig, axes = plt.subplots(2, max(1, len(chosen)), figsize=(3.2 * max(1, len(chosen)), 4.6), squeeze=False,
+                             sharey="row")
+    for k, (clip_id, lowest, floor) in enumerate(chosen):
+        t = np.arange(len(lowest)) / fps
+        top, bottom = axes[0, k], axes[1, k]
+        top.plot(t, 100 * lowest, lw=0.8, color="0.4", label="lowest foot point")
+        top.plot(t, 100 * floor, lw=1.6, color="tab:red", label="floor model")
+        top.set_title(clip_id.split("/", 1)[0] + "\n" + clip_id.rsplit("/", 1)[-1], fontsize=8)
+        bottom.plot(t, 100 * (lowest - floor), lw=0.8, color="tab:blue")
+        bottom.axhline(0, color="k", lw=0.6)
+        bottom.set_xlabel("s")
+    if chosen:
+        axes[0, 0].set_ylabel("raw: cm above the clip's lowest point", fontsize=8)
+        axes[1, 0].set_ylabel("corrected: cm above the floor", fontsize=8)
+        axes[0, 0].legend(fontsize=7)
+    else:
+        axes[0, 0].text(0.5, 0.5, "every clip's floor is level", ha="center", transform=axes[0, 0].transAxes)
+    fig.suptitle("Floors that drift or tilt: followed (ops/floor)", fontsize=10)
+    fig.tight_layout()
+    save_figure(fig, out, dpi=90)

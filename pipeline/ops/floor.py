@@ -1,0 +1,160 @@
+"""The floor under a clip, followed along the clip.
+
+A capture floor may be tilted, or the root height may drift over a take: then the clip's single lowest foot point
+leaves whole windows with both feet centimetres above the ground. The floor is read where the feet tell it: every
+half second (a step) the lowest foot point is a stance foot on the floor. Through those samples runs a robust
+local-linear trend (LOWESS), which follows tilts (also a tilted floor walked around in a circle), drifts and steps.
+Where the trend rises and falls less than a tolerance the floor is level, and stays the clip's lowest foot point,
+as every clip of a level capture always had it; elsewhere the trend is the floor. A clip whose samples stray from the model by more than a tolerance
+has no floor we can model, and the caller filters it. Pure functions of heights over frames.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class FloorConfig:
+    """params.yaml ``ingest.floor``."""
+
+    sample_s: float = 0.5  # one floor sample per this many seconds: the lowest foot point in it
+    bandwidth_s: float = 2.0  # the trend's local-linear window (Gaussian sigma = bandwidth / 2)
+    level_m: float = 0.02  # a trend that rises and falls less than this over the clip: a level floor
+    tolerance_m: float = 0.02  # median distance of the samples from the model above this: not modelled
+    low_quantile: float = 0.2  # a trend floor is lowered to this quantile of the samples about it (see fit_floor)
+
+    @classmethod
+    def from_dict(cls, p: dict[str, Any] | None) -> "FloorConfig":
+        return cls(**{k: float(v) for k, v in (p or {}).items()})
+
+
+@dataclass(frozen=True)
+class FloorModel:
+    """The floor height under every frame (T,) and what it is: ``level`` or ``trend``; ``drift_m`` the floor's
+    rise over the clip (largest minus smallest), ``tilt_deg`` the slope of the plane through it under the path,
+    ``residual_m`` the samples' median distance from the trend."""
+
+    heights: np.ndarray
+    kind: str
+    drift_m: float
+    tilt_deg: float
+    residual_m: float
+    samples: int
+
+    def report(self) -> dict[str, Any]:
+        return {"floor": self.kind, "drift_cm": round(100 * self.drift_m, 2), "tilt_deg": round(self.tilt_deg, 2),
+                "residual_cm": round(100 * self.residual_m, 2), "samples": self.samples}
+
+
+def floor_samples(lowest: np.ndarray, per_sample: int) -> tuple[np.ndarray, np.ndarray]:
+    """(frames, heights) of the lowest foot point (T,) in each run of ``per_sample`` frames (a last, shorter run
+    counts when it holds at least half as many)."""
+    frames = []
+    for a in range(0, len(lowest), per_sample):
+        b = min(a + per_sample, len(lowest))
+        if b - a >= max(1, per_sample // 2) or a == 0:
+            frames.append(a + int(np.argmin(lowest[a:b])))
+    idx = np.asarray(frames, dtype=np.int64)
+    return idx, lowest[idx]
+
+
+def _bisquare(residuals: np.ndarray) -> np.ndarray:
+    """Tukey's bisquare robustness weights, scaled by six median absolute residuals (as LOWESS does)."""
+    scale = 6.0 * max(float(np.median(np.abs(residuals))), 1e-6)
+    u = np.clip(residuals / scale, -1.0, 1.0)
+    return (1.0 - u * u) ** 2
+
+
+def _weighted_line(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> tuple[float, float]:
+    """(intercept, slope) of the weighted least-squares line y = a + b x."""
+    sw = w.sum()
+    mx, my = (w * x).sum() / sw, (w * y).sum() / sw
+    var = (w * (x - mx) ** 2).sum()
+    slope = (w * (x - mx) * (y - my)).sum() / var if var > 0 else 0.0
+    return my - slope * mx, slope
+
+
+def _plane_tilt(ground: np.ndarray, heights: np.ndarray) -> float:
+    """Degrees from horizontal of the plane a + b x + c z through heights (K,) at ground points (K, 2)."""
+    # centred, so that along a straight path (x and z in proportion) the least-norm plane still has the slope
+    # along the path rather than trading it for the intercept
+    design = ground - ground.mean(axis=0)
+    (b, c), *_ = np.linalg.lstsq(design, heights - heights.mean(), rcond=None)
+    return math.degrees(math.atan(math.hypot(b, c)))
+
+
+def _lowess(x: np.ndarray, y: np.ndarray, at: np.ndarray, sigma: float,
+            iterations: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """Robust local-linear fit of samples (x, y) evaluated at ``at`` (Gaussian kernel of ``sigma``), and the
+    samples' robustness weights (0 for an outlier)."""
+    robust = np.ones_like(y)
+
+    def fit(points: np.ndarray) -> np.ndarray:
+        out = np.empty(len(points))
+        for i, p in enumerate(points):
+            a, b = _weighted_line(x, y, robust * np.exp(-0.5 * ((x - p) / sigma) ** 2) + 1e-12)
+            out[i] = a + b * p
+        return out
+
+    for _ in range(iterations):
+        robust = _bisquare(y - fit(x))
+    return fit(at), robust
+
+
+def _trend(frames: np.ndarray, heights: np.ndarray, lowest: np.ndarray, fps: float, cfg: FloorConfig,
+           depth: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """The floor trend under frames [0, len(lowest)) through samples (frames, heights), and the samples' robustness
+    weights. A smooth trend through a step in the floor ramps under the feet on both sides of it, so where cutting
+    the samples in two fits them at least twice as well (the largest residual: the samples beside the step) and the
+    two sides' floors differ by more than ``level_m`` at the cut, each side gets its own trend (and each side may be
+    cut once more)."""
+    t, every = frames / fps, np.arange(len(lowest)) / fps
+    sigma = cfg.bandwidth_s / 2
+    whole, robust = _lowess(t, heights, every, sigma)
+    if depth == 0 or len(frames) < 8:
+        return whole, robust
+    worst = np.abs(heights - whole[frames]).max()
+    best = None
+    for k in range(4, len(frames) - 3):  # at least 2 s of samples on either side
+        # the cut: the frame between samples k - 1 and k where the lowest foot point jumps the most
+        a, b = frames[k - 1], frames[k]
+        cut = a + 1 + int(np.argmax(np.abs(np.diff(lowest[a:b + 1]))))
+        left, _ = _lowess(t[:k], heights[:k], every[:cut], sigma)
+        right, _ = _lowess(t[k:], heights[k:], every[cut:], sigma)
+        split = np.abs(heights - np.concatenate([left, right])[frames]).max()
+        if abs(right[0] - left[-1]) > cfg.level_m and split <= 0.5 * worst and (best is None or split < best[0]):
+            best = (split, k, cut)
+    if best is None:
+        return whole, robust
+    _, k, cut = best
+    left, left_robust = _trend(frames[:k], heights[:k], lowest[:cut], fps, cfg, depth - 1)
+    right, right_robust = _trend(frames[k:] - cut, heights[k:], lowest[cut:], fps, cfg, depth - 1)
+    return np.concatenate([left, right]), np.concatenate([left_robust, right_robust])
+
+
+def fit_floor(lowest: np.ndarray, ground: np.ndarray, fps: float, cfg: FloorConfig = FloorConfig()) -> FloorModel:
+    """The floor under a clip from the lowest foot point of every frame (T,) (metres, y up) and the root's ground
+    position (T, 2) (for the plane's tilt)."""
+    lowest = np.asarray(lowest, dtype=np.float64)
+    frames, heights = floor_samples(lowest, max(1, round(cfg.sample_s * fps)))
+    t = frames / fps
+    trend, robust = (_trend(frames, heights, lowest, fps, cfg) if len(t) > 1
+                     else (np.full(len(lowest), heights[0]), np.ones(1)))
+    kept = robust > 0 if (robust > 0).any() else np.ones(len(heights), bool)  # a trend may reject every sample
+    if trend.max() - trend.min() < cfg.level_m:
+        # level: the lowest foot point, as a level capture always had it, unless that is a sample the trend
+        # rejects (a foot dipping through the floor for a moment); then the lowest one it keeps
+        kind, floor = "level", np.full(len(lowest), heights[kept].min())
+    else:
+        # the trend runs through the middle of the samples (stances); the floor is where the lowest of a few
+        # stances reach, as a level floor is the lowest foot point: the trend lowered to the samples' low quantile
+        kind, floor = "trend", trend + np.quantile((heights - trend[frames])[kept], cfg.low_quantile)
+    residual = float(np.median(np.abs(heights - trend[frames])))  # how well a smooth floor explains the samples
+    tilt = _plane_tilt(ground[frames], floor[frames]) if len(t) > 2 else 0.0
+    return FloorModel(floor, kind, float(floor.max() - floor.min()), tilt, residual,
+                      len(frames))

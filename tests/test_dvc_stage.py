@@ -1,11 +1,15 @@
 """The real DVC pipeline in a fresh copy of the repository, and the stages' declared dependencies."""
 
+import dataclasses
 import hashlib
 import json
 import os
+import re
 import shutil
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -22,10 +26,23 @@ def _run(args, cwd, env):
     return subprocess.run(args, cwd=cwd, env=env, capture_output=True, text=True, check=True)
 
 
-@pytest.mark.slow
-@pytest.mark.usefixtures("mocap")
-def test_dvc_repro_runs_every_stage_then_is_a_noop(tmp_path):
-    work = tmp_path / "repo"
+@dataclasses.dataclass
+class SmallRepro:
+    """A fresh copy of the repository after one `dvc repro` of the real stages, sized to a test."""
+
+    work: Path
+    env: dict[str, str]
+    params: dict
+    stdout: str
+    seconds: dict[str, float]  # per stage, from its "Running stage" line to the next one's
+
+    def dvc(self, *args: str) -> subprocess.CompletedProcess:
+        return _run([sys.executable, "-m", "dvc", *args], self.work, self.env)
+
+
+@pytest.fixture(scope="module")
+def small_repro(tmp_path_factory, mocap) -> SmallRepro:
+    work = tmp_path_factory.mktemp("dvc") / "repo"
     for rel in COPY:
         src, dst = REPO / rel, work / rel
         dst.parent.mkdir(parents=True, exist_ok=True)
@@ -40,10 +57,26 @@ def test_dvc_repro_runs_every_stage_then_is_a_noop(tmp_path):
     (work / "params.yaml").write_text(yaml.safe_dump(params))
     env = dict(os.environ, DVC_NO_ANALYTICS="1", PATH=f"{Path(sys.executable).parent}:{os.environ['PATH']}")
     _run(["git", "init", "-q"], work, env)
-    dvc = [sys.executable, "-m", "dvc"]
-    first = _run(dvc + ["repro"], work, env)
+    lines, started = [], {}
+    with subprocess.Popen([sys.executable, "-m", "dvc", "repro"], cwd=work, env=env, stdout=subprocess.PIPE,
+                          stderr=subprocess.STDOUT, text=True) as proc:
+        for line in proc.stdout:
+            lines.append(line)
+            if m := re.match(r"Running stage '(\w+)'", line):
+                started[m.group(1)] = time.monotonic()
+        ended = time.monotonic()
+    stdout = "".join(lines)
+    assert proc.returncode == 0, stdout[-3000:]
+    order = sorted(started, key=started.get)
+    seconds = {s: (started[n] if n else ended) - started[s] for s, n in zip(order, order[1:] + [None])}
+    return SmallRepro(work, env, params, stdout, seconds)
+
+
+@pytest.mark.slow
+def test_dvc_repro_runs_every_stage_then_is_a_noop(small_repro, tmp_path):
+    work, params, dvc = small_repro.work, small_repro.params, small_repro.dvc
     for stage in DVC:
-        assert f"Running stage '{stage}'" in first.stdout
+        assert f"Running stage '{stage}'" in small_repro.stdout
     report = json.loads((work / "reports/ingest.json").read_text())
     assert report["files_seen"] >= 361 and report["gaits"] > 1000
     split = json.loads((work / "reports/split.json").read_text())
@@ -66,11 +99,62 @@ def test_dvc_repro_runs_every_stage_then_is_a_noop(tmp_path):
     # carry the md5 of every stage output in dvc.lock, so no output may hold a timing).
     for stage in ("train", "synthesize", "fit_pca_gaussian", "synthesize_pca_gaussian", "fit_motion_graph",
                   "synthesize_motion_graph", "publish"):
-        _run(dvc + ["repro", "-f", "-s", stage], work, env)
+        dvc("repro", "-f", "-s", stage)
     assert _digests(published) == before
-    assert "up to date" in _run(dvc + ["status"], work, env).stdout
-    second = _run(dvc + ["repro"], work, env)
+    assert "up to date" in dvc("status").stdout
+    second = dvc("repro")
     assert "Running stage" not in second.stdout and "didn't change" in second.stdout
+
+
+def _stage_outputs(work: Path, stage: str) -> dict[str, str]:
+    """sha256 of every file a stage declares (outs, metrics, plots; directories walked), by path."""
+    out = {}
+    for entry in (e for key in ("outs", "metrics", "plots") for e in DVC[stage].get(key, [])):
+        path = work / (entry if isinstance(entry, str) else next(iter(entry)))
+        files = sorted(f for f in path.rglob("*") if f.is_file()) if path.is_dir() else [path] if path.exists() else []
+        out.update({str(f.relative_to(work)): hashlib.sha256(f.read_bytes()).hexdigest() for f in files})
+    return out
+
+
+@pytest.mark.slow
+def test_a_stage_killed_mid_run_leaves_no_output_that_is_accepted_and_reruns_byte_identical(small_repro):
+    """Every stage, SIGKILLed (DVC and the stage's Python together) at 30 % and 70 % of its run: each file it
+    declares is then either missing or complete (atomic writes: the same bytes as a whole run's), never a partial
+    file under the final name; whatever is left that differs, DVC does not accept (the stage is not up to date) and
+    reruns it; the rerun writes the same bytes, and no temporary file stays anywhere in the repository."""
+    work, dvc = small_repro.work, small_repro.dvc
+    reference = {stage: _stage_outputs(work, stage) for stage in DVC}
+    everything = _all_files(work)
+    for stage in DVC:
+        for fraction in (0.3, 0.7):
+            proc = subprocess.Popen([sys.executable, "-m", "dvc", "repro", "-f", "-s", stage], cwd=work,
+                                    env=small_repro.env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                    start_new_session=True)
+            try:
+                proc.wait(timeout=fraction * small_repro.seconds[stage])
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+            left = _stage_outputs(work, stage)
+            # a file under its final name is whole (atomic writes); a temporary file inside a directory output may
+            # be left, but then the directory is not what dvc.lock says and DVC must not accept it
+            partial = {f for f, digest in left.items() if reference[stage].get(f) != digest}
+            assert all(Path(f).name.startswith(".") for f in partial), (
+                f"{stage} killed at {fraction:.0%}: partial files under their final names {sorted(partial)}")
+            status = dvc("status", stage).stdout
+            if left != reference[stage]:
+                assert "changed outs" in status or "modified" in status or "deleted" in status, (stage, status)
+            dvc("repro", "-s", stage)
+            assert _stage_outputs(work, stage) == reference[stage], f"{stage}: the rerun after a kill differs"
+            assert "up to date" in dvc("status").stdout
+            stray = _all_files(work) - everything
+            assert not stray, f"{stage} killed at {fraction:.0%} left files behind: {sorted(stray)[:10]}"
+
+
+def _all_files(work: Path) -> set[str]:
+    """Every file of the copy outside DVC's and git's own folders (their caches and locks are theirs to keep)."""
+    return {str(f.relative_to(work)) for f in work.rglob("*")
+            if f.is_file() and f.relative_to(work).parts[0] not in (".dvc", ".git")}
 
 
 def _digests(directory: Path) -> dict[str, str]:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 import hashlib
+import glob
 import io
 import json
 import os
@@ -27,9 +28,12 @@ META_KEY = b"emogait"  # the schema-metadata key of every gait table (Parquet) w
 @contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
     """A temporary path beside ``path``, renamed onto it when the block succeeds (removed when it fails). It ends
-    in ``.tmp`` plus the real suffix, so writers that pick a format by extension (Pillow, matplotlib) still can."""
+    in ``.tmp`` plus the real suffix, so writers that pick a format by extension (Pillow, matplotlib) still can.
+    A process killed mid-write leaves its temporary file; the next write of the same path removes it."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    for stale in path.parent.glob(f".{glob.escape(path.name)}.*.tmp{glob.escape(path.suffix)}"):
+        stale.unlink(missing_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=f".tmp{path.suffix}")
     os.close(fd)
     try:

@@ -88,14 +88,18 @@ def test_feet_touch_the_floor_in_every_clip(full_ingest, skeleton):
     table, arrays, clips = _by_clip(full_ingest)
     contents = table.column("content").to_pylist()
     feet = arrays["positions"][..., list(skeleton.foot_joints), 1]
-    grounded = {}
+    grounded, dipping = {}, {}
     for cid, rows in clips.items():
         lowest = float(feet[rows].min())
-        assert -0.02 <= lowest <= 0.02, f"{cid}: lowest foot point {lowest:.3f} m"
+        assert lowest <= 0.02, f"{cid}: lowest foot point {lowest:.3f} m"
+        if lowest < -0.02:
+            dipping[cid] = round(lowest, 3)
         if contents[rows[0]] == "walk":  # runs and dashes have flight phases; a walk keeps a foot down
             grounded[cid] = float((feet[rows].min(axis=-1) < 0.05).mean())
-    # Plain walks keep a foot on the floor; CMU 131 is "Michael Jackson styled" (kicks, a toe stand that sets
-    # the clip's lowest point 6 cm below its ball-of-foot joints), so a few stylised clips may not.
+    # Plain walks keep a foot on the floor; CMU 131 is "Michael Jackson styled": in 131_02 the stance toe sinks 5 cm
+    # below where the clip's feet stand, for a second of a high kick. The floor model rejects those samples and
+    # keeps the floor under the rest of the clip, so a few stylised clips may dip through it.
+    assert len(dipping) <= 0.02 * len(clips), dipping
     hovering = {c: round(g, 2) for c, g in grounded.items() if g <= 0.9}
     assert len(hovering) <= 0.02 * len(grounded), hovering
 

@@ -4,9 +4,10 @@ A capture floor may be tilted, or the root height may drift over a take: then th
 leaves whole windows with both feet centimetres above the ground. The floor is read where the feet tell it: every
 half second (a step) the lowest foot point is a stance foot on the floor. Through those samples runs a robust
 local-linear trend (LOWESS), which follows tilts (also a tilted floor walked around in a circle), drifts and steps.
-Where the trend rises and falls less than a tolerance the floor is level, and stays the clip's lowest foot point,
-as every clip of a level capture always had it; elsewhere the trend is the floor. A clip whose samples stray from the model by more than a tolerance
-has no floor we can model, and the caller filters it. Pure functions of heights over frames.
+Where the trend rises and falls less than a tolerance the floor is level, and stays the clip's lowest foot point
+(unless that is a foot through the floor for a moment, which the robust trend rejects), as every clip of a level
+capture always had it; elsewhere the trend is the floor. A clip whose samples stray from the model by more than a
+tolerance has no floor we can model, and the caller filters it. Pure functions of heights over frames.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ class FloorConfig:
     bandwidth_s: float = 2.0  # the trend's local-linear window (Gaussian sigma = bandwidth / 2)
     level_m: float = 0.02  # a trend that rises and falls less than this over the clip: a level floor
     tolerance_m: float = 0.02  # median distance of the samples from the model above this: not modelled
-    low_quantile: float = 0.2  # a trend floor is lowered to this quantile of the samples about it (see fit_floor)
+    low_quantile: float = 0.2  # a trend floor is lowered to this quantile of the samples near each frame
 
     @classmethod
     def from_dict(cls, p: dict[str, Any] | None) -> "FloorConfig":
@@ -106,19 +107,34 @@ def _lowess(x: np.ndarray, y: np.ndarray, at: np.ndarray, sigma: float,
     return fit(at), robust
 
 
+def _local_quantile(x: np.ndarray, y: np.ndarray, at: np.ndarray, sigma: float, q: float) -> np.ndarray:
+    """The ``q`` quantile of samples (x, y) about each point of ``at``, each sample weighted by a Gaussian of
+    ``sigma`` in x: the lower edge of the samples near a point rather than of the whole clip."""
+    order = np.argsort(y, kind="stable")
+    x, y = x[order], y[order]
+    weights = np.exp(-0.5 * ((at[:, None] - x[None, :]) / sigma) ** 2) + 1e-12
+    cumulative = np.cumsum(weights, axis=1) / weights.sum(axis=1, keepdims=True)
+    return y[np.minimum((cumulative < q).sum(axis=1), len(y) - 1)]
+
+
 def _trend(frames: np.ndarray, heights: np.ndarray, lowest: np.ndarray, fps: float, cfg: FloorConfig,
            depth: int = 2) -> tuple[np.ndarray, np.ndarray]:
     """The floor trend under frames [0, len(lowest)) through samples (frames, heights), and the samples' robustness
     weights. A smooth trend through a step in the floor ramps under the feet on both sides of it, so where cutting
     the samples in two fits them at least twice as well (the largest residual: the samples beside the step) and the
     two sides' floors differ by more than ``level_m`` at the cut, each side gets its own trend (and each side may be
-    cut once more)."""
+    cut once more). The whole trend's misfit leaves out the samples it rejects below it: a foot through the floor
+    for a moment (a stance toe dipping during a kick) is no reason to cut, and a cut beside it would follow it as a
+    floor. A step leaves samples off the whole trend on both sides, above it as well as below; the cut trends must
+    fit every sample."""
     t, every = frames / fps, np.arange(len(lowest)) / fps
     sigma = cfg.bandwidth_s / 2
     whole, robust = _lowess(t, heights, every, sigma)
     if depth == 0 or len(frames) < 8:
         return whole, robust
-    worst = np.abs(heights - whole[frames]).max()
+    residuals = heights - whole[frames]
+    judged = (robust > 0) | (residuals > 0)
+    worst = np.abs(residuals)[judged].max(initial=0.0)
     best = None
     for k in range(4, len(frames) - 3):  # at least 2 s of samples on either side
         # the cut: the frame between samples k - 1 and k where the lowest foot point jumps the most
@@ -152,8 +168,11 @@ def fit_floor(lowest: np.ndarray, ground: np.ndarray, fps: float, cfg: FloorConf
         kind, floor = "level", np.full(len(lowest), heights[kept].min())
     else:
         # the trend runs through the middle of the samples (stances); the floor is where the lowest of a few
-        # stances reach, as a level floor is the lowest foot point: the trend lowered to the samples' low quantile
-        kind, floor = "trend", trend + np.quantile((heights - trend[frames])[kept], cfg.low_quantile)
+        # stances reach, as a level floor is the lowest foot point: the trend lowered to the low quantile of the
+        # samples about each frame (local, so that where the trend lags a fast rise the floor still meets the feet)
+        kind, floor = "trend", trend + _local_quantile(t[kept], (heights - trend[frames])[kept],
+                                                       np.arange(len(lowest)) / fps, cfg.bandwidth_s / 2,
+                                                       cfg.low_quantile)
     residual = float(np.median(np.abs(heights - trend[frames])))  # how well a smooth floor explains the samples
     tilt = _plane_tilt(ground[frames], floor[frames]) if len(t) > 2 else 0.0
     return FloorModel(floor, kind, float(floor.max() - floor.min()), tilt, residual,

@@ -35,7 +35,7 @@ def main(params_path: Path | None = None, out_gaits: Path = OUT_GAITS, out_repor
     write_parquet(to_table(windows, skeleton, cfg.window), out_gaits)
     write_json(report, out_report)
     render_filmstrip(preview_gaits(windows, skeleton), out_preview)
-    render_floor_models(floors, cfg.target_fps, out_floor)
+    render_floor_models(floors, cfg.target_fps, out_floor, skeleton)
     print(f"ingest: {report['files_seen']} files seen, {report['files_ingested']} ingested, "
           f"{report['files_quarantined']} quarantined, {report['files_filtered']} filtered; "
           f"{report['gaits']} gaits from {report['clips']} clips -> {out_gaits.relative_to(REPO)}")

@@ -25,6 +25,7 @@ from pipeline.ingest.run import IngestConfig, run_ingest
 from pipeline.io.manifests import load_manifest
 from pipeline.io.readers.bvh import read_bvh
 from pipeline.ops.floor import FloorConfig, fit_floor
+from pipeline.viz.stick_figures import render_floor_models
 from stages.common import REPO, SKELETON
 from tests.conftest import MOCAP
 
@@ -101,11 +102,13 @@ def family(request, tmp_path_factory, mocap):
     (root / f"repair_{source}.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
     manifest = load_manifest(root / f"repair_{source}.yaml")
     cfg = IngestConfig(mocap_root=root, target_fps=30, window=60, stride=30, min_gait_speed=0.2, chunk_frames=10 ** 6)
-    windows, report = run_ingest([manifest], load_skeleton(SKELETON), cfg, workers=1, progress=False)
+    windows, report, floors = run_ingest([manifest], load_skeleton(SKELETON), cfg, workers=1, progress=False,
+                                         floor_series=True)
     by_case: dict[str, list[dict]] = {}
     for w in windows:
         by_case.setdefault(Path(w["file"]).stem, []).append(w)
-    return SimpleNamespace(source=source, windows=by_case, report=report, frame_time=read_bvh(path).frame_time)
+    return SimpleNamespace(source=source, windows=by_case, report=report, floors=floors,
+                           frame_time=read_bvh(path).frame_time)
 
 
 def _events(report: dict, case: str) -> list[dict]:
@@ -194,3 +197,19 @@ def test_a_floor_step_is_followed_on_both_sides():
     corrected = lowest - model.heights
     for a in range(0, len(lowest), 60):  # every two seconds a stance foot stands on the floor
         assert abs(corrected[a:a + 60].min()) <= 0.01, (a, corrected[a:a + 60].min())
+
+
+def test_the_floor_plot_draws_each_trend_clip_raw_and_corrected(family, tmp_path):
+    skeleton = load_skeleton(SKELETON)
+    by_case = {clip_id.rsplit("/", 1)[-1]: (lowest, floor, positions) for clip_id, lowest, floor, positions in
+               family.floors}
+    assert {"tilted_3deg", "drift_15cm", "step_5cm"} <= set(by_case)
+    for lowest, floor, positions in by_case.values():
+        # the corrected clip's lowest foot point is the raw one less the floor (both above the raw clip's lowest)
+        corrected = positions[:, list(skeleton.foot_joints), 1].min(axis=1)
+        np.testing.assert_allclose(corrected, lowest - floor, atol=2e-5)
+    out = tmp_path / "floor.png"
+    render_floor_models(family.floors, 30.0, out, skeleton)
+    first = out.read_bytes()
+    render_floor_models(family.floors, 30.0, out, skeleton)
+    assert first[:8] == b"\x89PNG\r\n\x1a\n" and out.read_bytes() == first

@@ -70,8 +70,9 @@ class FileRecord:
     clips: list[dict[str, Any]] = field(default_factory=list)  # per clip made of the file: its floor model
     window_floor: list[tuple[str, float, float]] = field(default_factory=list)  # per window: content, lowest foot
     # point (m) with the clip's lowest foot point as the floor (before) and with the modelled floor (after)
-    floor_series: list[tuple[str, np.ndarray, np.ndarray]] = field(default_factory=list)  # per trend clip: its id,
-    # lowest foot point per frame and modelled floor (m, above the clip's lowest foot point), for the report's plot
+    floor_series: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=list)  # per trend
+    # clip: its id, lowest foot point per frame and modelled floor (m, above the clip's lowest foot point), and the
+    # corrected joint positions (T, J, 3), for the report's plot
 
     def report_entry(self) -> dict[str, Any]:
         return {"source": self.source, "path": self.path, "sha256": self.sha256, "reason": self.reason}
@@ -297,11 +298,11 @@ def _windows_of_clip(manifest: SourceManifest, skeleton: Skeleton, item: _Prepar
         return []
     floor = torch.from_numpy(model.heights).to(pos.dtype)
     before = float(lowest.min())
-    if model.kind == "trend":
-        rec.floor_series.append((clip_id, (lowest - before).astype(np.float32),
-                                 (model.heights - before).astype(np.float32)))
     pos = pos.clone()
     pos[..., 1] -= floor[:, None] if model.kind == "trend" else float(model.heights[0])
+    if model.kind == "trend":
+        rec.floor_series.append((clip_id, (lowest - before).astype(np.float32),
+                                 (model.heights - before).astype(np.float32), pos.to(torch.float32).numpy()))
     root = root.clone()
     root[:, 1] -= floor if model.kind == "trend" else float(model.heights[0])
     step = ground_speed(root)
@@ -362,7 +363,8 @@ def run_ingest(manifests: Sequence[SourceManifest], skeleton: Skeleton, cfg: Ing
                scheduler_address: str | None = None, workers: int | None = None, progress: bool = True,
                floor_series: bool = False) -> tuple:
     """Ingest every input of every manifest. Returns (windows sorted by id, report), and with ``floor_series`` the
-    trend clips' (clip id, lowest foot point per frame, floor) as a third element (for the report's plot)."""
+    trend clips' (clip id, lowest foot point per frame, floor, corrected positions) as a third element (for the
+    report's plot)."""
     import dask
 
     chunks = plan_chunks(manifests, cfg)

@@ -57,6 +57,16 @@ def _travel_axes(pos: np.ndarray, root: int) -> tuple[np.ndarray, np.ndarray]:
     return fwd, np.array([-fwd[1], fwd[0]])
 
 
+def _side_view(ax, p: np.ndarray, fwd: np.ndarray, motion: Motion, colour: str | None = None) -> None:
+    """One pose (J, 3) seen from the side: along travel horizontally (root at 0), height vertically; bones coloured
+    by side unless ``colour`` is given."""
+    u = (p[:, [0, 2]] - p[motion.root, [0, 2]]) @ fwd
+    for j, parent in enumerate(motion.parents):
+        if parent >= 0:
+            ax.plot([u[parent], u[j]], [p[parent, 1], p[j, 1]], color=colour or _bone_colour(motion.names[j]), lw=2)
+    ax.scatter(u, p[:, 1], s=6, color=colour or "#555555", zorder=3)
+
+
 def render_filmstrip(motions: Sequence[Motion], out: str | Path, frames: int = 8, dpi: int = 100) -> Path:
     """One row per motion: ``frames`` evenly spaced side views plus a top view of the path."""
     out = Path(out)
@@ -69,12 +79,7 @@ def render_filmstrip(motions: Sequence[Motion], out: str | Path, frames: int = 8
         picks = np.linspace(0, len(pos) - 1, frames).round().astype(int)
         top = max(2.0, float(pos[..., 1].max()) + 0.1)
         for ax, t in zip(row[:-1], picks):
-            p = pos[t]
-            u = (p[:, [0, 2]] - p[motion.root, [0, 2]]) @ fwd  # along travel, root at 0
-            for j, parent in enumerate(motion.parents):
-                if parent >= 0:
-                    ax.plot([u[parent], u[j]], [p[parent, 1], p[j, 1]], color=_bone_colour(motion.names[j]), lw=2)
-            ax.scatter(u, p[:, 1], s=6, color="#555555", zorder=3)
+            _side_view(ax, pos[t], fwd, motion)
             ax.axhline(0.0, color="#8a6d3b", lw=1.5)
             ax.set_xlim(-0.8, 0.8)
             ax.set_ylim(-0.1, top)
@@ -229,25 +234,40 @@ def preview_gaits(windows: Sequence[dict], skeleton: Skeleton) -> list[Motion]:
                    skeleton.names) for w in picked.values()]
 
 
-def render_floor_models(series: Sequence[tuple[str, np.ndarray, np.ndarray]], fps: float, out: Path,
-                        limit: int = 6) -> None:
-    """The clips whose floor drifts most (``series``: clip id, lowest foot point per frame, modelled floor; metres
-    above the clip's lowest foot point): raw heights with the floor model above, corrected heights below."""
+def render_floor_models(series: Sequence[tuple[str, np.ndarray, np.ndarray, np.ndarray]], fps: float, out: Path,
+                        skeleton: Skeleton, limit: int = 6) -> None:
+    """The clips whose floor drifts most (``series``: clip id, lowest foot point per frame, modelled floor, both in
+    metres above the clip's lowest foot point, and the corrected joint positions): raw heights with the floor model
+    on top, corrected heights below them, and at the bottom the frame where the two floors differ most, its raw legs
+    (the clip's lowest foot point as the floor, grey) behind the corrected ones."""
     chosen = sorted(series, key=lambda s: -float(np.ptp(s[2])))[:limit]
-    fig, axes = plt.subplots(2, max(1, len(chosen)), figsize=(3.2 * max(1, len(chosen)), 4.6), squeeze=False,
-                             sharey="row")
-    for k, (clip_id, lowest, floor) in enumerate(chosen):
+    fig, axes = plt.subplots(3, max(1, len(chosen)), figsize=(3.2 * max(1, len(chosen)), 7.4), squeeze=False,
+                             sharey="row", gridspec_kw={"height_ratios": [1, 1, 0.9]})
+    for k, (clip_id, lowest, floor, positions) in enumerate(chosen):
         t = np.arange(len(lowest)) / fps
-        top, bottom = axes[0, k], axes[1, k]
+        top, middle, pose = axes[0, k], axes[1, k], axes[2, k]
         top.plot(t, 100 * lowest, lw=0.8, color="0.4", label="lowest foot point")
         top.plot(t, 100 * floor, lw=1.6, color="tab:red", label="floor model")
         top.set_title(clip_id.split("/", 1)[0] + "\n" + clip_id.rsplit("/", 1)[-1], fontsize=8)
-        bottom.plot(t, 100 * (lowest - floor), lw=0.8, color="tab:blue")
-        bottom.axhline(0, color="k", lw=0.6)
-        bottom.set_xlabel("s")
+        middle.plot(t, 100 * (lowest - floor), lw=0.8, color="tab:blue")
+        middle.axhline(0, color="k", lw=0.6)
+        middle.set_xlabel("s")
+        f = int(np.argmax(floor))  # the raw clip floats highest above its one floor here
+        motion = Motion(clip_id, positions, skeleton.parents, skeleton.names)
+        fwd, _ = _travel_axes(np.asarray(positions, dtype=np.float64), motion.root)
+        corrected = np.asarray(positions[f], dtype=np.float64)
+        _side_view(pose, corrected + np.array([0.0, float(floor[f]), 0.0]), fwd, motion, colour="0.7")
+        _side_view(pose, corrected, fwd, motion)
+        pose.axhline(0.0, color="#8a6d3b", lw=1.5)
+        pose.set_xlim(-0.6, 0.6)
+        pose.set_ylim(-0.05, 0.55)  # the legs: centimetres show at this scale
+        pose.set_aspect("equal")
+        pose.set_xticks([])
+        pose.set_title(f"{t[f]:.1f} s: raw (grey) {100 * floor[f]:.1f} cm up", fontsize=8)
     if chosen:
         axes[0, 0].set_ylabel("raw: cm above the clip's lowest point", fontsize=8)
         axes[1, 0].set_ylabel("corrected: cm above the floor", fontsize=8)
+        axes[2, 0].set_ylabel("legs (m): raw grey", fontsize=8)
         axes[0, 0].legend(fontsize=7)
     else:
         axes[0, 0].text(0.5, 0.5, "every clip's floor is level", ha="center", transform=axes[0, 0].transAxes)

@@ -71,12 +71,14 @@ def _bisquare(residuals: np.ndarray) -> np.ndarray:
     return (1.0 - u * u) ** 2
 
 
-def _weighted_line(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> tuple[float, float]:
-    """(intercept, slope) of the weighted least-squares line y = a + b x."""
-    sw = w.sum()
-    mx, my = (w * x).sum() / sw, (w * y).sum() / sw
-    var = (w * (x - mx) ** 2).sum()
-    slope = (w * (x - mx) * (y - my)).sum() / var if var > 0 else 0.0
+def _weighted_lines(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(intercepts, slopes) of the weighted least-squares lines y = a + b x, one per row of weights w (P, K)."""
+    sw = w.sum(axis=1)
+    mx, my = (w * x).sum(axis=1) / sw, (w * y).sum(axis=1) / sw
+    dx = x - mx[:, None]
+    var = (w * dx ** 2).sum(axis=1)
+    cov = (w * dx * (y - my[:, None])).sum(axis=1)
+    slope = np.divide(cov, var, out=np.zeros_like(cov), where=var > 0)
     return my - slope * mx, slope
 
 
@@ -96,11 +98,8 @@ def _lowess(x: np.ndarray, y: np.ndarray, at: np.ndarray, sigma: float,
     robust = np.ones_like(y)
 
     def fit(points: np.ndarray) -> np.ndarray:
-        out = np.empty(len(points))
-        for i, p in enumerate(points):
-            a, b = _weighted_line(x, y, robust * np.exp(-0.5 * ((x - p) / sigma) ** 2) + 1e-12)
-            out[i] = a + b * p
-        return out
+        a, b = _weighted_lines(x, y, robust * np.exp(-0.5 * ((x[None, :] - points[:, None]) / sigma) ** 2) + 1e-12)
+        return a + b * points
 
     for _ in range(iterations):
         robust = _bisquare(y - fit(x))
@@ -140,9 +139,11 @@ def _trend(frames: np.ndarray, heights: np.ndarray, lowest: np.ndarray, fps: flo
         # the cut: the frame between samples k - 1 and k where the lowest foot point jumps the most
         a, b = frames[k - 1], frames[k]
         cut = a + 1 + int(np.argmax(np.abs(np.diff(lowest[a:b + 1]))))
-        left, _ = _lowess(t[:k], heights[:k], every[:cut], sigma)
-        right, _ = _lowess(t[k:], heights[k:], every[cut:], sigma)
-        split = np.abs(heights - np.concatenate([left, right])[frames]).max()
+        # each side's trend at its samples and at the two frames beside the cut (all the search needs; the
+        # chosen cut is fitted at every frame below)
+        left, _ = _lowess(t[:k], heights[:k], np.append(t[:k], every[cut - 1]), sigma)
+        right, _ = _lowess(t[k:], heights[k:], np.append(every[cut], t[k:]), sigma)
+        split = np.abs(heights - np.concatenate([left[:-1], right[1:]])).max()
         if abs(right[0] - left[-1]) > cfg.level_m and split <= 0.5 * worst and (best is None or split < best[0]):
             best = (split, k, cut)
     if best is None:

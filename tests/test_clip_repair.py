@@ -213,3 +213,24 @@ def test_the_floor_plot_draws_each_trend_clip_raw_and_corrected(family, tmp_path
     first = out.read_bytes()
     render_floor_models(family.floors, 30.0, out, skeleton)
     assert first[:8] == b"\x89PNG\r\n\x1a\n" and out.read_bytes() == first
+
+
+def test_the_step_search_fits_all_its_candidates_at_once_as_it_would_one_by_one():
+    # the batched LOWESS (every candidate cut's two sides in one array) must equal a fit of each side alone
+    from pipeline.ops.floor import _candidate_fits, _lowess, _median
+    rng = np.random.default_rng(1)
+    values = rng.normal(size=(40, 9))
+    counts = rng.integers(1, 10, size=40)
+    expected = [np.median(row[:c]) for row, c in zip(values, counts)]
+    assert np.array_equal(_median(np.where(np.arange(9) < counts[:, None], values, np.inf), counts), expected)
+    t = np.arange(14) * 0.5
+    heights = 0.01 * rng.normal(size=14) + np.where(t > 3.2, 0.05, 0.0)  # a 5 cm step, jittered
+    ks = np.arange(4, 11)
+    before, after = t[ks - 1] + 0.1, t[ks] - 0.1
+    split, jump = _candidate_fits(t, heights, ks, before, after, sigma=1.0, block=14 * 14 * 2)  # 2 per block
+    for i, k in enumerate(ks):
+        left, _ = _lowess(t[:k], heights[:k], np.append(t[:k], before[i]), 1.0)
+        right, _ = _lowess(t[k:], heights[k:], np.append(after[i], t[k:]), 1.0)
+        assert split[i] == pytest.approx(np.abs(heights - np.concatenate([left[:-1], right[1:]])).max(), abs=1e-12)
+        assert jump[i] == pytest.approx(abs(right[0] - left[-1]), abs=1e-12)
+    assert ks[np.argmin(split)] == 7  # the cut at the step (between t = 3.0 and 3.5) explains the samples best

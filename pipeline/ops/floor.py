@@ -64,20 +64,32 @@ def floor_samples(lowest: np.ndarray, per_sample: int) -> tuple[np.ndarray, np.n
     return idx, lowest[idx]
 
 
-def _bisquare(residuals: np.ndarray) -> np.ndarray:
-    """Tukey's bisquare robustness weights, scaled by six median absolute residuals (as LOWESS does)."""
-    scale = 6.0 * max(float(np.median(np.abs(residuals))), 1e-6)
-    u = np.clip(residuals / scale, -1.0, 1.0)
-    return (1.0 - u * u) ** 2
+def _median(values: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """The median of the first ``counts`` values of every row of ``values`` (..., K), as np.median computes it
+    (the mean of the two middle values of an even count), without its per-call cost for the small rows here."""
+    ordered = np.sort(values, axis=-1)
+    low = np.take_along_axis(ordered, ((counts - 1) // 2)[..., None], axis=-1)[..., 0]
+    high = np.take_along_axis(ordered, (counts // 2)[..., None], axis=-1)[..., 0]
+    return (low + high) / 2
+
+
+def _bisquare(residuals: np.ndarray, kept: np.ndarray) -> np.ndarray:
+    """Tukey's bisquare robustness weights of the kept residuals of each row (..., K) (0 elsewhere), scaled by six
+    median absolute kept residuals (as LOWESS does)."""
+    counts = kept.sum(axis=-1)
+    spread = _median(np.where(kept, np.abs(residuals), np.inf), counts)
+    scale = 6.0 * np.maximum(spread, 1e-6)
+    u = np.clip(residuals / scale[..., None], -1.0, 1.0)
+    return np.where(kept, (1.0 - u * u) ** 2, 0.0)
 
 
 def _weighted_lines(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(intercepts, slopes) of the weighted least-squares lines y = a + b x, one per row of weights w (P, K)."""
-    sw = w.sum(axis=1)
-    mx, my = (w * x).sum(axis=1) / sw, (w * y).sum(axis=1) / sw
-    dx = x - mx[:, None]
-    var = (w * dx ** 2).sum(axis=1)
-    cov = (w * dx * (y - my[:, None])).sum(axis=1)
+    """(intercepts, slopes) of the weighted least-squares lines y = a + b x, one per row of weights w (..., K)."""
+    sw = w.sum(axis=-1)
+    mx, my = (w * x).sum(axis=-1) / sw, (w * y).sum(axis=-1) / sw
+    dx = x - mx[..., None]
+    var = (w * dx ** 2).sum(axis=-1)
+    cov = (w * dx * (y - my[..., None])).sum(axis=-1)
     slope = np.divide(cov, var, out=np.zeros_like(cov), where=var > 0)
     return my - slope * mx, slope
 
@@ -91,18 +103,22 @@ def _plane_tilt(ground: np.ndarray, heights: np.ndarray) -> float:
     return math.degrees(math.atan(math.hypot(b, c)))
 
 
-def _lowess(x: np.ndarray, y: np.ndarray, at: np.ndarray, sigma: float,
+def _lowess(x: np.ndarray, y: np.ndarray, at: np.ndarray, sigma: float, kept: np.ndarray | None = None,
             iterations: int = 2) -> tuple[np.ndarray, np.ndarray]:
-    """Robust local-linear fit of samples (x, y) evaluated at ``at`` (Gaussian kernel of ``sigma``), and the
-    samples' robustness weights (0 for an outlier)."""
-    robust = np.ones_like(y)
+    """Robust local-linear fit of samples (x, y) (K,) evaluated at ``at`` (..., P) (Gaussian kernel of ``sigma``),
+    and the samples' robustness weights (..., K) (0 for an outlier). ``kept`` (..., K) fits several subsets of the
+    samples at once (the step search's candidate sides), each at its own row of ``at``; the left-out samples
+    weigh nothing."""
+    kept = np.ones(at.shape[:-1] + x.shape, bool) if kept is None else kept
+    robust = kept.astype(np.float64)
 
     def fit(points: np.ndarray) -> np.ndarray:
-        a, b = _weighted_lines(x, y, robust * np.exp(-0.5 * ((x[None, :] - points[:, None]) / sigma) ** 2) + 1e-12)
+        gauss = np.exp(-0.5 * ((x[..., None, :] - points[..., :, None]) / sigma) ** 2)
+        a, b = _weighted_lines(x, y, np.where(kept[..., None, :], robust[..., None, :] * gauss + 1e-12, 0.0))
         return a + b * points
 
     for _ in range(iterations):
-        robust = _bisquare(y - fit(x))
+        robust = _bisquare(y - fit(np.broadcast_to(x, kept.shape)), kept)
     return fit(at), robust
 
 
@@ -114,6 +130,28 @@ def _local_quantile(x: np.ndarray, y: np.ndarray, at: np.ndarray, sigma: float, 
     weights = np.exp(-0.5 * ((at[:, None] - x[None, :]) / sigma) ** 2) + 1e-12
     cumulative = np.cumsum(weights, axis=1) / weights.sum(axis=1, keepdims=True)
     return y[np.minimum((cumulative < q).sum(axis=1), len(y) - 1)]
+
+
+def _candidate_fits(t: np.ndarray, heights: np.ndarray, ks: np.ndarray, before_cut: np.ndarray,
+                    after_cut: np.ndarray, sigma: float, block: int = 1 << 21) -> tuple[np.ndarray, np.ndarray]:
+    """For each candidate cut (samples [0, k) left of it, [k, K) right), each side's own trend: the largest
+    distance of a sample from its side's trend, and the two trends' difference across the cut (at the frames
+    ``before_cut`` and ``after_cut`` beside it, seconds). All candidates fitted at once, a block of them at a time
+    so that long clips stay within bounded memory."""
+    n = len(t)
+    split, jump = np.empty(len(ks)), np.empty(len(ks))
+    step = max(1, block // (n * n))
+    for a in range(0, len(ks), step):
+        k = ks[a:a + step, None]
+        left_side = np.arange(n)[None, :] < k
+        at_samples = np.broadcast_to(t, left_side.shape)
+        left, _ = _lowess(t, heights, np.concatenate([at_samples, before_cut[a:a + step, None]], axis=1), sigma,
+                          left_side)
+        right, _ = _lowess(t, heights, np.concatenate([after_cut[a:a + step, None], at_samples], axis=1), sigma,
+                           ~left_side)
+        split[a:a + step] = np.abs(heights - np.where(left_side, left[:, :-1], right[:, 1:])).max(axis=1)
+        jump[a:a + step] = np.abs(right[:, 0] - left[:, -1])
+    return split, jump
 
 
 def _trend(frames: np.ndarray, heights: np.ndarray, lowest: np.ndarray, fps: float, cfg: FloorConfig,
@@ -134,21 +172,16 @@ def _trend(frames: np.ndarray, heights: np.ndarray, lowest: np.ndarray, fps: flo
     residuals = heights - whole[frames]
     judged = (robust > 0) | (residuals > 0)
     worst = np.abs(residuals)[judged].max(initial=0.0)
-    best = None
-    for k in range(4, len(frames) - 3):  # at least 2 s of samples on either side
-        # the cut: the frame between samples k - 1 and k where the lowest foot point jumps the most
-        a, b = frames[k - 1], frames[k]
-        cut = a + 1 + int(np.argmax(np.abs(np.diff(lowest[a:b + 1]))))
-        # each side's trend at its samples and at the two frames beside the cut (all the search needs; the
-        # chosen cut is fitted at every frame below)
-        left, _ = _lowess(t[:k], heights[:k], np.append(t[:k], every[cut - 1]), sigma)
-        right, _ = _lowess(t[k:], heights[k:], np.append(every[cut], t[k:]), sigma)
-        split = np.abs(heights - np.concatenate([left[:-1], right[1:]])).max()
-        if abs(right[0] - left[-1]) > cfg.level_m and split <= 0.5 * worst and (best is None or split < best[0]):
-            best = (split, k, cut)
-    if best is None:
+    # the cut between samples k - 1 and k: the frame where the lowest foot point jumps the most
+    ks = np.arange(4, len(frames) - 3)  # at least 2 s of samples on either side
+    cuts = np.array([frames[k - 1] + 1 + int(np.argmax(np.abs(np.diff(lowest[frames[k - 1]:frames[k] + 1]))))
+                     for k in ks], dtype=np.int64)
+    split, jump = _candidate_fits(t, heights, ks, every[cuts - 1], every[cuts], sigma)
+    ok = np.flatnonzero((jump > cfg.level_m) & (split <= 0.5 * worst))
+    if len(ok) == 0:
         return whole, robust
-    _, k, cut = best
+    best = ok[np.argmin(split[ok])]  # the first of equals, as a scan keeping the strictly better would
+    k, cut = int(ks[best]), int(cuts[best])
     left, left_robust = _trend(frames[:k], heights[:k], lowest[:cut], fps, cfg, depth - 1)
     right, right_robust = _trend(frames[k:] - cut, heights[k:], lowest[cut:], fps, cfg, depth - 1)
     return np.concatenate([left, right]), np.concatenate([left_robust, right_robust])

@@ -312,6 +312,9 @@ def _windows_of_clip(manifest: SourceManifest, skeleton: Skeleton, item: _Prepar
         return []
     starts = window_starts(root.shape[0], cfg.window, cfg.stride)
     label = item.label
+    # stored as float32, converted once per clip (each window a copy of its slice)
+    arrays = {"positions": pos.to(torch.float32).numpy(), "rotations": rot.to(torch.float32).numpy(),
+              "root_path": root[:, [0, 2]].to(torch.float32).numpy(), "heading": heading.to(torch.float32).numpy()}
     out = []
     for w, s in enumerate(starts):
         e = s + cfg.window
@@ -331,13 +334,11 @@ def _windows_of_clip(manifest: SourceManifest, skeleton: Skeleton, item: _Prepar
             "style": label.style,
             "emotion": None if label.emotion is None else np.asarray(label.emotion, dtype=np.float32),
             "label_method": label.label_method,
-            "positions": pos[s:e].to(torch.float32).numpy(),
-            "rotations": rot[s:e].to(torch.float32).numpy(),
-            "root_path": root[s:e][:, [0, 2]].to(torch.float32).numpy(),
-            "heading": heading[s:e].to(torch.float32).numpy(),
+            **{name: values[s:e].copy() for name, values in arrays.items()},
         })
-    rec.window_floor.extend((label.content, float(feet[s:s + cfg.window].min()) - before,
-                             float(pos[s:s + cfg.window, list(skeleton.foot_joints), 1].min())) for s in starts)
+    raw_feet, feet = feet.numpy(), pos[..., list(skeleton.foot_joints), 1].numpy()
+    rec.window_floor.extend((label.content, float(raw_feet[s:s + cfg.window].min()) - before,
+                             float(feet[s:s + cfg.window].min())) for s in starts)
     rec.gaits += len(out)
     rec.status, rec.reason = "ingested", None
     return out

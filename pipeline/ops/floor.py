@@ -112,14 +112,17 @@ def _lowess(x: np.ndarray, y: np.ndarray, at: np.ndarray, sigma: float, kept: np
     kept = np.ones(at.shape[:-1] + x.shape, bool) if kept is None else kept
     robust = kept.astype(np.float64)
 
-    def fit(points: np.ndarray) -> np.ndarray:
-        gauss = np.exp(-0.5 * ((x[..., None, :] - points[..., :, None]) / sigma) ** 2)
+    def kernel(points: np.ndarray) -> np.ndarray:
+        return np.exp(-0.5 * ((x - points[..., :, None]) / sigma) ** 2)
+
+    def fit(points: np.ndarray, gauss: np.ndarray) -> np.ndarray:
         a, b = _weighted_lines(x, y, np.where(kept[..., None, :], robust[..., None, :] * gauss + 1e-12, 0.0))
         return a + b * points
 
+    at_samples = kernel(x)  # the same for every subset and every iteration
     for _ in range(iterations):
-        robust = _bisquare(y - fit(np.broadcast_to(x, kept.shape)), kept)
-    return fit(at), robust
+        robust = _bisquare(y - fit(x, at_samples), kept)
+    return fit(at, kernel(at)), robust
 
 
 def _local_quantile(x: np.ndarray, y: np.ndarray, at: np.ndarray, sigma: float, q: float) -> np.ndarray:

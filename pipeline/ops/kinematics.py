@@ -37,39 +37,41 @@ def forward_kinematics(
     Returns positions (..., J, 3) and global rotations (..., J, 4).
 
     Joints of one depth are computed together (7 levels for the canonical skeleton instead of 20 joints one
-    by one): the same products per joint, so the same numbers, in fewer and larger tensor operations.
+    by one): the same products per joint, so the same numbers, in fewer and larger tensor operations. A joint's
+    parent is always one level up, so each level reads only the level before it.
     """
     translations = translations.expand(rotations.shape[:-1] + (3,))
-    order, levels, inverse = _levels(tuple(parents), str(rotations.device))
+    levels, inverse = _levels(tuple(parents), str(rotations.device))
     globals_ = [rotations[..., :1, :]]
     positions = [translations[..., :1, :]]
     for joints, parent_slots in levels:
-        done_g, done_x = torch.cat(globals_, dim=-2), torch.cat(positions, dim=-2)
-        g = qmul(done_g.index_select(-2, parent_slots), rotations.index_select(-2, joints))
+        g = qmul(globals_[-1].index_select(-2, parent_slots), rotations.index_select(-2, joints))
+        positions.append(positions[-1].index_select(-2, parent_slots) + qrot(g, translations.index_select(-2, joints)))
         globals_.append(g)
-        positions.append(done_x.index_select(-2, parent_slots) + qrot(g, translations.index_select(-2, joints)))
     return (torch.cat(positions, dim=-2).index_select(-2, inverse),
             torch.cat(globals_, dim=-2).index_select(-2, inverse))
 
 
 @functools.lru_cache(maxsize=32)
-def _levels(parents: tuple[int, ...], device: str) -> tuple[torch.Tensor, tuple, torch.Tensor]:
-    """Joints grouped by depth: (evaluation order, ((joints, their parents' slots in that order), ...),
-    the permutation back to joint order)."""
+def _levels(parents: tuple[int, ...], device: str) -> tuple[tuple, torch.Tensor]:
+    """Joints grouped by depth: (((joints, their parents' slots in the level above), ...), the permutation from
+    the levels' order back to joint order)."""
     if parents[0] >= 0 or any(p >= j for j, p in enumerate(parents) if j):
         raise ValueError(f"parents must be topologically ordered with the root first, found {list(parents)}")
     depth = [0] * len(parents)
     for j, p in enumerate(parents[1:], start=1):
         depth[j] = depth[p] + 1
     order = [0]
+    above = [0]
     levels = []
     for d in range(1, max(depth) + 1):
         joints = [j for j in range(len(parents)) if depth[j] == d]
-        slots = [order.index(parents[j]) for j in joints]
+        slots = [above.index(parents[j]) for j in joints]
         levels.append((torch.tensor(joints, device=device), torch.tensor(slots, device=device)))
         order += joints
+        above = joints
     inverse = torch.tensor([order.index(j) for j in range(len(parents))], device=device)
-    return torch.tensor(order, device=device), tuple(levels), inverse
+    return tuple(levels), inverse
 
 
 def rotations_from_bvh_form(joint_rotations: torch.Tensor, parents: Sequence[int]) -> torch.Tensor:

@@ -23,13 +23,14 @@ from pipeline.audit.metrics import (
     describe_affective_feature,
     feature_descriptions,
     gait_problems,
+    held_out_by_content,
     js_distance,
     normalised_entropy,
     parse_affective_name,
     recognisability,
     steady_label,
 )
-from pipeline.audit.report import verdict_lines
+from pipeline.audit.report import content_rows, verdict_lines
 from pipeline.audit.run import audit_frame
 from pipeline.core.emotions import EMOTIONS, dominant_emotion
 from pipeline.core.skeleton import canonical_skeleton
@@ -307,6 +308,40 @@ def test_augmentation_draws_per_real_gait_only_from_gaits_whose_label_holds():
     assert r["augmentation"]["eligible"] == {"all": 12} and r["augmentation"]["drawn"] == {"all": 12}
     assert "augmentation_delta" in r["by_recogniser"]["summary_mlp"]
     assert "augmentation_all_delta" not in r["by_recogniser"]["summary_mlp"]
+
+
+def test_augmentation_is_also_scored_on_held_out_contents_the_generators_make_and_on_the_others():
+    frame, _ = _frame()
+    real, held = (frame["kind"] == "real").to_numpy(), frame["split"].isin(["val", "test"]).to_numpy()
+    frame["content"] = np.where(real, "walk", "walk")
+    assert held_out_by_content(frame, held) == {}  # every held-out gait walks, as the synthetic ones do
+    frame.loc[np.flatnonzero(held)[::3], "content"] = "run"  # a third of the held-out clips run
+    views = held_out_by_content(frame, held)
+    assert set(views) == {"generator_contents", "other_contents"}
+    assert (views["generator_contents"] ^ views["other_contents"]).all()
+    assert views["other_contents"].sum() == len(np.flatnonzero(held)[::3])
+    cfg = dataclasses.replace(AUDIT, augment_with_all=False, seeds={"summary_mlp": (0, 1), "temporal_cnn": (0,)})
+    r = recognisability(frame, EMOTIONS, cfg)
+    assert r["held_out_by_content"]["other_contents"]["contents"] == ["run"]
+    assert r["held_out_by_content"]["generator_contents"]["contents"] == ["walk"]
+    assert sum(v["gaits"] for v in r["held_out_by_content"].values()) == r["gaits"]["real_held_out"]
+    for entry in r["by_recogniser"].values():
+        parts = entry["by_content"]
+        # the same predictions, split: the two parts' confusions add up to the whole held-out set's
+        for whole, part in ((entry["real_held_out"], lambda v: v["real_held_out"]),
+                            (entry["augmented_real_held_out"], lambda v: v["augmented"]["all"]["augmented_real_held_out"])):
+            summed = sum(np.array(part(v)["confusion_summed_over_seeds"]) for v in parts.values())
+            assert np.array_equal(summed, np.array(whole["confusion_summed_over_seeds"]))
+        for v in parts.values():
+            change = v["augmented"]["all"]
+            for s in ("accuracy", "balanced_accuracy", "macro_f1"):
+                assert change["augmentation_delta"][s] == pytest.approx(
+                    change["augmented_real_held_out"][f"{s}_mean"] - v["real_held_out"][f"{s}_mean"], abs=1e-4)
+                lo, hi = change["augmentation_delta_ci95"][s]
+                assert -1.0 <= lo <= hi <= 1.0
+    rows = content_rows(r)  # the page's table: one row per recogniser, part and synthetic set, all formatted text
+    assert len(rows) == 2 * 2 and all(isinstance(v, str) for row in rows for v in row.values())
+    assert [row["held-out gaits"] for row in rows[:2]] == ["generator contents: walk", "other contents: run"]
 
 
 def test_a_real_clip_is_its_source_file_and_a_synthetic_gait_its_own_unit():

@@ -42,7 +42,7 @@ from pipeline.recognition import (
     summary_features,
 )
 
-COLUMNS = ("gait_id", "kind", "split", "source", "label_method", "generator", "emotion", "emotion_per_frame",
+COLUMNS = ("gait_id", "kind", "split", "source", "content", "label_method", "generator", "emotion", "emotion_per_frame",
            "contacts", "phase", "positions", "heading", "affective", "movement", "source_file", "source_sha256", "t_start", "t_end",
            "checkpoint_sha256", "seed_gait_id", "trajectory_id", "emotion_recipe", "plan_seed", "source_segments")
 LINEAGE = {"real": ("source_file", "source_sha256", "t_start", "t_end"),
@@ -367,6 +367,21 @@ def generator_families(frame: pd.DataFrame) -> dict[str, np.ndarray]:
     return {name: synthetic}
 
 
+def held_out_by_content(frame: pd.DataFrame, held_out: np.ndarray) -> dict[str, np.ndarray]:
+    """The held-out rows split by content: ``generator_contents`` (a content some synthetic gait has, e.g. forward
+    walks) and ``other_contents`` (motions no generator makes: running, sideways walks, ...), as masks over the
+    held-out rows. Synthetic gaits can only teach a recogniser the contents they show, so an augmentation figure
+    over both hides where it helps or hurts. Empty when the frame has no contents or either part is empty."""
+    if "content" not in frame:
+        return {}
+    content = frame["content"].astype(object).where(frame["content"].notna(), None).to_numpy()
+    made = {c for c in content[(frame["kind"] == "synthetic").to_numpy()] if c is not None}
+    ours = np.array([c in made for c in content[held_out]], dtype=bool)
+    if not made or ours.all() or not ours.any():
+        return {}
+    return {"generator_contents": ours, "other_contents": ~ours}
+
+
 def _summary(matrices: list[np.ndarray], names: Sequence[str], groups: np.ndarray, y: np.ndarray,
              predictions: list[np.ndarray], resamples: int) -> dict[str, Any]:
     """Mean and spread over seeds of each score, the 95 % interval of that mean resampling clips (every seed
@@ -394,6 +409,30 @@ def _delta(augmented: dict[str, Any], real: dict[str, Any], groups: np.ndarray, 
     return {s: round(augmented[f"{s}_mean"] - real[f"{s}_mean"], 4) for s in SCORES}, interval
 
 
+def _content_breakdown(views: dict[str, np.ndarray], names: Sequence[str], groups: np.ndarray, y: np.ndarray,
+                       real: list[np.ndarray], augmented: dict[str, list[np.ndarray]], resamples: int
+                       ) -> dict[str, Any]:
+    """The held-out predictions (real-only and augmented, the same fits) scored on each content view: the real-only
+    figures and, per synthetic set, the augmented figures and their change with its paired interval."""
+    k = len(names)
+    out: dict[str, Any] = {}
+    for view, m in views.items():
+        def summary(answers: list[np.ndarray]) -> dict[str, Any]:
+            return _summary([confusion(y[m], a[m], k) for a in answers], names, groups[m], y[m],
+                            [a[m] for a in answers], resamples)
+
+        base = summary(real)
+        sets: dict[str, Any] = {}
+        for name, answers in augmented.items():
+            result = summary(answers)
+            delta, ci = _delta(result, base, groups[m], y[m], [a[m] for a in real], [a[m] for a in answers], k,
+                               resamples)
+            sets[name] = {"augmented_real_held_out": result, "augmentation_delta": delta,
+                          "augmentation_delta_ci95": ci}
+        out[view] = {"real_held_out": base, "augmented": sets}
+    return out
+
+
 def recognisability(frame: pd.DataFrame, names: Sequence[str], cfg: AuditConfig = AuditConfig(),
                     inputs: RecognitionInputs | None = None, progress: bool = False) -> dict[str, Any]:
     """Both independent recognisers (``recognition.RECOGNISERS``), each over its seeds (``cfg.seeds``; mean and
@@ -409,6 +448,9 @@ def recognisability(frame: pd.DataFrame, names: Sequence[str], cfg: AuditConfig 
       (``augmented_real_held_out``; ``augmentation_delta`` and its paired interval ``augmentation_delta_ci95``).
       Beside it (``cfg.augment_with_all``), the naive use: every synthetic gait at weight one
       (``augmented_all_real_held_out``, ``augmentation_all_delta``, ``augmentation_all_delta_ci95``).
+
+    Where the held-out gaits include contents no synthetic gait has (``held_out_by_content``), the same
+    predictions are also scored on each part (``by_content``: real-only and augmented, with the change).
 
     Every test set reports accuracy, balanced accuracy, macro-F1 and its majority-class baseline. The synthetic
     figures are given for all synthetic gaits together and per generator family (``families``; one family: the
@@ -450,6 +492,15 @@ def recognisability(frame: pd.DataFrame, names: Sequence[str], cfg: AuditConfig 
         "also_all_synthetic": cfg.augment_with_all}
     held = inputs.select(test)
     r_args = (cfg.bootstrap_resamples,)
+    by_content = held_out_by_content(frame, test)
+    if by_content:
+        content = frame["content"].to_numpy()[test]
+        dominant = np.asarray(list(names), dtype=object)[label[test]]
+        out["held_out_by_content"] = {
+            view: {"contents": sorted({str(c) for c in content[m]}), "gaits": int(m.sum()),
+                   "clips": int(len(set(groups[test][m]))),
+                   "per_emotion": {n: int((dominant[m] == n).sum()) for n in names}}
+            for view, m in by_content.items()}
     for kind in RECOGNISERS:
         seeds = cfg.seeds[kind]
         predicted: dict[str, list[np.ndarray]] = {"real_held_out": []}
@@ -492,6 +543,9 @@ def recognisability(frame: pd.DataFrame, names: Sequence[str], cfg: AuditConfig 
                     e["augmented_all_real_held_out"], entry["real_held_out"], groups[test], label[test],
                     predicted["real_held_out"], augmented_all[name], k, *r_args)
             per_set[name] = e
+        if by_content:
+            entry["by_content"] = _content_breakdown(by_content, names, groups[test], label[test],
+                                                     predicted["real_held_out"], augmented, *r_args)
         entry.update(per_set.get("all", {}))
         entry["families"] = {}
         for name, mask in families.items():

@@ -27,9 +27,11 @@ META_KEY = b"emogait"  # the schema-metadata key of every gait table (Parquet) w
 
 @contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
-    """A temporary path beside ``path``, renamed onto it when the block succeeds (removed when it fails). It ends
-    in ``.tmp`` plus the real suffix, so writers that pick a format by extension (Pillow, matplotlib) still can.
-    A process killed mid-write leaves its temporary file; the next write of the same path removes it."""
+    """A temporary path beside ``path``, renamed onto it when the block succeeds (removed when it fails), for
+    writers that need a path (h5py, animations). It ends in ``.tmp`` plus the real suffix, so writers that pick a
+    format by extension (Pillow, matplotlib) still can. A process killed mid-write leaves its temporary file; the
+    next write of the same path removes it. Whatever can be made in memory goes through ``write_bytes`` instead,
+    which leaves nothing behind."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     for stale in path.parent.glob(f".{glob.escape(path.name)}.*.tmp{glob.escape(path.suffix)}"):
@@ -54,16 +56,64 @@ def sha256_file(path: str | Path) -> str:
         return hashlib.file_digest(fh, "sha256").hexdigest()
 
 
+def _link_descriptor(fd: int, name: Path) -> None:
+    """Give the open unnamed file ``fd`` the name ``name``: through ``/proc/self/fd`` (any user), else
+    ``linkat(AT_EMPTY_PATH)`` (where /proc is another mount, e.g. in some sandboxes; needs privilege)."""
+    try:
+        os.link(f"/proc/self/fd/{fd}", name, follow_symlinks=True)
+        return
+    except OSError:
+        pass
+    import ctypes
+
+    libc = ctypes.CDLL(None, use_errno=True)
+    at_fdcwd, at_empty_path = -100, 0x1000
+    if libc.linkat(fd, b"", at_fdcwd, os.fsencode(name), at_empty_path) != 0:
+        errno = ctypes.get_errno()
+        raise OSError(errno, os.strerror(errno), str(name))
+
+
+def _write_unnamed(data: bytes, path: Path) -> bool:
+    """Write ``data`` to an unnamed file in ``path``'s directory (Linux ``O_TMPFILE``), then give it a name and
+    rename that onto ``path``. A process killed while writing leaves nothing: the file has no name until it is
+    whole, and the name exists only between two system calls. False where the file system cannot (the caller then
+    uses a named temporary)."""
+    try:
+        fd = os.open(path.parent, os.O_TMPFILE | os.O_WRONLY, 0o644)
+    except (AttributeError, OSError):
+        return False
+    name = None
+    try:
+        os.fchmod(fd, 0o644)  # what a named temporary gets too, whatever the umask
+        view = memoryview(data)
+        while view:
+            view = view[os.write(fd, view):]
+        name = path.parent / f".{path.name}.{os.urandom(6).hex()}.tmp{path.suffix}"
+        _link_descriptor(fd, name)
+        os.replace(name, path)
+        return True
+    except OSError:
+        if name is not None and os.path.lexists(name):
+            os.unlink(name)
+        return False
+    finally:
+        os.close(fd)
+
+
 def write_bytes(data: bytes, path: str | Path) -> str:
     """Write bytes atomically; return their sha256."""
-    with atomic_path(path) as tmp:
-        tmp.write_bytes(data)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    for stale in path.parent.glob(f".{glob.escape(path.name)}.*.tmp{glob.escape(path.suffix)}"):
+        stale.unlink(missing_ok=True)  # a killed path-based write's temporary
+    if not _write_unnamed(data, path):
+        with atomic_path(path) as tmp:
+            tmp.write_bytes(data)
     return sha256_bytes(data)
 
 
 def write_text(text: str, path: str | Path) -> None:
-    with atomic_path(path) as tmp:
-        tmp.write_text(text, encoding="utf-8")
+    write_bytes(text.encode("utf-8"), path)
 
 
 def json_text(obj: Any, sort_keys: bool = True, ascii_only: bool = True) -> str:
@@ -91,16 +141,18 @@ def save_figure(fig: Any, path: str | Path, **savefig: Any) -> None:
     import matplotlib.pyplot as plt
 
     try:
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, **savefig)
+        buffer = io.BytesIO()  # rendered in memory, so a killed stage leaves no temporary beside the figure
+        fig.savefig(buffer, **{"format": Path(path).suffix.lstrip("."), **savefig})
+        write_bytes(buffer.getvalue(), path)
     finally:
         plt.close(fig)
 
 
 def write_parquet(table: pa.Table, path: str | Path) -> None:
     """zstd, 512-row groups, statistics, no timestamps: the same table gives the same bytes."""
-    with atomic_path(path) as tmp:
-        pq.write_table(table, tmp, compression="zstd", row_group_size=512, write_statistics=True)
+    sink = pa.BufferOutputStream()  # in memory, as for figures
+    pq.write_table(table, sink, compression="zstd", row_group_size=512, write_statistics=True)
+    write_bytes(sink.getvalue().to_pybytes(), path)
 
 
 def schema_meta(schema: pa.Schema) -> dict[str, Any]:

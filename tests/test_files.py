@@ -32,7 +32,6 @@ def test_the_next_write_removes_a_killed_writes_temporary_and_no_other_file(tmp_
 # A child process that SIGKILLs itself at its first os.write: killed in the middle of writing the file's bytes.
 _KILLED_MID_WRITE = textwrap.dedent("""
     import os, signal, sys
-    from pathlib import Path
     import pipeline.io.files as files
     os.write = lambda fd, data: os.kill(os.getpid(), signal.SIGKILL)
     if sys.argv[2] == "write_bytes":

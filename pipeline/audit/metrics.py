@@ -374,9 +374,9 @@ def held_out_by_content(frame: pd.DataFrame, held_out: np.ndarray) -> dict[str, 
     over both hides where it helps or hurts. Empty when the frame has no contents or either part is empty."""
     if "content" not in frame:
         return {}
-    content = frame["content"].astype(object).where(frame["content"].notna(), None).to_numpy()
-    made = {c for c in content[(frame["kind"] == "synthetic").to_numpy()] if c is not None}
-    ours = np.array([c in made for c in content[held_out]], dtype=bool)
+    content = frame["content"]
+    made = set(content[frame["kind"] == "synthetic"].dropna())
+    ours = content[held_out].isin(made).to_numpy()
     if not made or ours.all() or not ours.any():
         return {}
     return {"generator_contents": ours, "other_contents": ~ours}

@@ -25,6 +25,20 @@ import pyarrow.parquet as pq
 META_KEY = b"emogait"  # the schema-metadata key of every gait table (Parquet) we write
 
 
+def _temporary_name(path: Path, token: str) -> Path:
+    """The hidden name of a temporary of ``path``; ``token="*"`` gives the pattern of them all."""
+    return path.parent / f".{path.name}.{token}.tmp{path.suffix}"
+
+
+def _prepare(path: str | Path) -> Path:
+    """``path``, its directory made, and the temporaries a killed earlier write of it left removed."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    for stale in path.parent.glob(_temporary_name(Path(glob.escape(path.name)), "*").name):  # the name, escaped
+        stale.unlink(missing_ok=True)
+    return path
+
+
 @contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
     """A temporary path beside ``path``, renamed onto it when the block succeeds (removed when it fails), for
@@ -32,10 +46,7 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     format by extension (Pillow, matplotlib) still can. A process killed mid-write leaves its temporary file; the
     next write of the same path removes it. Whatever can be made in memory goes through ``write_bytes`` instead,
     which leaves nothing behind."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    for stale in path.parent.glob(f".{glob.escape(path.name)}.*.tmp{glob.escape(path.suffix)}"):
-        stale.unlink(missing_ok=True)
+    path = _prepare(path)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=f".tmp{path.suffix}")
     os.close(fd)
     try:
@@ -88,7 +99,7 @@ def _write_unnamed(data: bytes, path: Path) -> bool:
         view = memoryview(data)
         while view:
             view = view[os.write(fd, view):]
-        name = path.parent / f".{path.name}.{os.urandom(6).hex()}.tmp{path.suffix}"
+        name = _temporary_name(path, os.urandom(6).hex())
         _link_descriptor(fd, name)
         os.replace(name, path)
         return True
@@ -102,10 +113,7 @@ def _write_unnamed(data: bytes, path: Path) -> bool:
 
 def write_bytes(data: bytes, path: str | Path) -> str:
     """Write bytes atomically; return their sha256."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    for stale in path.parent.glob(f".{glob.escape(path.name)}.*.tmp{glob.escape(path.suffix)}"):
-        stale.unlink(missing_ok=True)  # a killed path-based write's temporary
+    path = _prepare(path)
     if not _write_unnamed(data, path):
         with atomic_path(path) as tmp:
             tmp.write_bytes(data)

@@ -13,7 +13,8 @@ from pipeline.evaluation.autoregressive import constant_velocity, pose_errors, s
 from pipeline.io.files import write_bytes
 from pipeline.generators.autoregressive.rollout import (PlacementConfig, Seeds, generate, place_paths, smoothed_root,
                                                       stance_step, swinging_points)
-from pipeline.generators.autoregressive.network import FOOT_JOINTS, EmotiveGaitNet, GeneratorConfig, LossWeights, generator_losses
+from pipeline.generators.autoregressive.network import (FOOT_JOINTS, EmotiveGaitNet, GeneratorConfig, LossWeights,
+                                                       fixed_bones, generator_losses)
 from pipeline.ops.geometry import distance_to_polyline, odd_frames
 from pipeline.ops.quaternion import euler_to_quat, qangle, qnormalize, quat_to_euler
 from pipeline.generators.autoregressive.training import (
@@ -128,6 +129,30 @@ def test_generation_is_batched_and_deterministic(gaits, offsets, skeleton):
     norms = torch.linalg.vector_norm(together.rotations, dim=-1)
     assert torch.allclose(norms, torch.ones_like(norms), atol=1e-5)
     assert torch.equal(together.condition[2], torch.zeros(30, 5))  # NaN emotion -> unlabelled condition
+
+
+def test_fixed_bones_of_a_source_stay_fixed_in_generated_gaits(annotated, offsets, skeleton):
+    """Retargeting fixes the Bandai hips, lower back and hand tips (one versor per clip); the network must not drift
+    them (it did, ~7 degrees over a gait, through its residual versor head), while the other joints move."""
+    table, arrays = annotated
+    sources = np.array(table.column("source").to_pylist())
+    rows = np.flatnonzero(sources == "bandai_namco_motiondataset")[::50][:4]
+    seeds = Seeds.from_arrays(arrays, rows, prefix=18)
+    fixed = fixed_bones(seeds.gaits.q)
+    named = {skeleton.names[j] for j in np.flatnonzero(fixed.all(0).numpy())}
+    assert fixed.any(0).tolist() == fixed.all(0).tolist()  # the same joints in every clip of the source
+    assert named == {"left_hip", "right_hip", "lower_back", "left_hand_index", "right_hand_index"}, named
+    assert not fixed[:, 0].any()
+    model = _model(GaitTensors.from_arrays(arrays, rows))
+    emotions = torch.zeros(len(rows), 30, 4)
+    emotions[..., 2] = 1.0
+    out = generate(model, seeds, place_paths(straight_path(), seeds), emotions, offsets, skeleton.parents)
+    last = seeds.gaits.q[:, -1]
+    drift = qangle(out.versors, last[:, None].expand_as(out.versors))  # (N, S, 21) rad from the seed's last versor
+    assert drift[fixed[:, None].expand_as(drift)].max() < 1e-3
+    moving = ~fixed
+    moving[:, 0] = False
+    assert drift.amax(1)[moving].median() > math.radians(1.0)  # the untrained network does move the others
 
 
 def test_bone_lengths_of_generated_gaits_are_the_canonical_ones(gaits, offsets, skeleton):

@@ -31,6 +31,7 @@ deg/frame and the speed holds (measured in reports/eval.json).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 
@@ -43,12 +44,13 @@ from pipeline.generators.autoregressive.critic import style_loss, style_match_lo
 from pipeline.ops.features import affective_features
 from pipeline.ops.geometry import unit_direction, wrap_angle_atan2
 from pipeline.ops.kinematics import canonical_positions
-from pipeline.ops.quaternion import qnormalize, qrot, quat_to_euler, yaw
+from pipeline.ops.quaternion import qangle, qnormalize, qrot, quat_to_euler, yaw
 
 JOINTS = 21
 VERSORS = JOINTS  # the pelvis relative to the direction of travel + the 20 non-root joints
 CONDITION = len(EMOTIONS) + 1  # emotion vector + "labelled" flag
 SCALARS = ("omega", "s", "kappa", "h", "delta")  # standardised per-frame scalars
+FIXED_BONE_TOLERANCE_DEG = 0.1  # a versor that stays this close to its first value through the prefix is a fixed bone
 ROOT_FEATURES = ("h", "s", "delta")
 FOOT_JOINTS = canonical_skeleton().foot_joints  # heel and toe of each foot, by name in the canonical skeleton
 
@@ -147,7 +149,7 @@ class EmotiveGaitNet(nn.Module):
     def forward(self, frames: dict[str, torch.Tensor], hidden: torch.Tensor | None = None
                 ) -> tuple[dict[str, torch.Tensor], torch.Tensor]:
         """frames: q (B, L, 21, 4), affective (B, L, 18), condition (B, L, 5), theta, omega, s, kappa, h, delta
-        (B, L). Returns the predicted next frames {q (normalised), q_raw, h, s, delta (B, L, ...)} and the GRU
+        (B, L), optionally fixed (B, 21) (``fixed_bones`` of the gait's prefix). Returns the predicted next frames {q (normalised), q_raw, h, s, delta (B, L, ...)} and the GRU
         state."""
         cond = frames["condition"]
         std = {k: self.standardise(k, frames[k]) for k in SCALARS}
@@ -167,12 +169,29 @@ class EmotiveGaitNet(nn.Module):
         theta = frames["theta"][..., None]
         harmonics = torch.cat([torch.sin(theta), torch.cos(theta), torch.sin(2 * theta), torch.cos(2 * theta)], -1)
         q_raw = q + self.fc_versors(torch.cat([latent, harmonics], -1)).reshape(batch, length, VERSORS, 4)
+        if "fixed" in frames:  # the gait's fixed bones (``fixed_bones``) keep the versor they are fed
+            q_raw = torch.where(frames["fixed"][:, None, :, None], q, q_raw)
         root_latent = self.fc_root(torch.cat([std["h"][..., None], std["s"][..., None], std["delta"][..., None],
                                               gamma], -1))
         out = {"q": qnormalize(q_raw), "q_raw": q_raw}
         for name, head in (("h", self.fc_h), ("s", self.fc_s), ("delta", self.fc_delta)):
             out[name] = self.destandardise(name, std[name] + head(root_latent).squeeze(-1))
         return out, hidden
+
+
+def fixed_bones(q: torch.Tensor) -> torch.Tensor:
+    """(B, P, 21, 4) versors of the frames a gait starts from -> (B, 21) bool: the joints whose versor stays within
+    ``FIXED_BONE_TOLERANCE_DEG`` of its first value through them (never the pelvis, which turns with every step).
+
+    Retargeting leaves some bones of a source skeleton fixed: the hips and the lower back, from which it builds the
+    pelvis frame, and the hand tips where a source has none. Each keeps one versor through a real clip, a different
+    one per source. Predicted through the residual versor head, they drifted ~7 degrees over a 60-frame rollout
+    and carried the upper body and legs against the pelvis, in no real frame; given their prefix versor, they stay.
+    """
+    angle = qangle(q, q[:, :1]).amax(1)
+    fixed = angle <= math.radians(FIXED_BONE_TOLERANCE_DEG)
+    fixed[:, 0] = False
+    return fixed
 
 
 def condition_vectors(emotion: torch.Tensor) -> torch.Tensor:

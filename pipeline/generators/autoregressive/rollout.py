@@ -43,7 +43,8 @@ import numpy as np
 import torch
 
 from pipeline.generators.base import fit_placed
-from pipeline.generators.autoregressive.network import FOOT_JOINTS, EmotiveGaitNet, condition_vectors, sharpened
+from pipeline.generators.autoregressive.network import (FOOT_JOINTS, EmotiveGaitNet, condition_vectors, fixed_bones,
+                                                       sharpened)
 from pipeline.ops.geometry import (
     arc_lengths,
     direction_of,
@@ -231,7 +232,7 @@ def generate(model: EmotiveGaitNet, seeds: Seeds, paths: torch.Tensor, emotions:
     condition = condition_vectors(sharpened(emotions.to(torch.float32), cfg.expression_sharpness))
     prefix = seed.q.shape[1]
     theta, omega = extrapolated_phase(seed.theta, seed.omega, steps)
-    frames = seed.frames(0, prefix)
+    frames = {**seed.frames(0, prefix), "fixed": fixed_bones(seed.q)}
     pred, hidden = model(frames)
     guided = cfg.guidance != 1.0
     if guided:  # the same network without a condition (m = 0, as it learnt unlabelled gaits), its own state
@@ -284,7 +285,8 @@ def generate(model: EmotiveGaitNet, seeds: Seeds, paths: torch.Tensor, emotions:
             break
         inputs = {"q": current["q"][:, None], "affective": predicted_affective(current["q"], offsets, parents)[:, None],
                   "condition": condition[:, t:t + 1], "theta": theta[:, t:t + 1], "omega": omega[:, t:t + 1],
-                  "s": speed[:, None], "kappa": kappa[:, None], "h": current["h"][:, None], "delta": delta[:, None]}
+                  "s": speed[:, None], "kappa": kappa[:, None], "h": current["h"][:, None], "delta": delta[:, None],
+                  "fixed": frames["fixed"]}
         pred, hidden = model(inputs, hidden)
         if guided:
             free_pred, free_hidden = model({**inputs, "condition": torch.zeros_like(inputs["condition"])}, free_hidden)

@@ -34,6 +34,7 @@ from pipeline.generators.autoregressive.network import (
     GeneratorConfig,
     LossWeights,
     condition_vectors,
+    fixed_bones,
     generator_losses,
     sharpened,
     travel_frame_positions,
@@ -150,7 +151,8 @@ def rollout(model: EmotiveGaitNet, gaits: GaitTensors, offsets: torch.Tensor, pa
     frames = gaits.q.shape[1]
     steps = frames - prefix
     theta, omega = extrapolated_phase(gaits.theta[:, :prefix], gaits.omega[:, :prefix], steps)
-    pred, hidden = model(gaits.frames(0, prefix))
+    fixed = fixed_bones(gaits.q[:, :prefix])
+    pred, hidden = model({**gaits.frames(0, prefix), "fixed": fixed})
     current = {k: v[:, -1:] for k, v in pred.items()}
     outputs = [current]
     for step in range(steps - 1):
@@ -165,7 +167,7 @@ def rollout(model: EmotiveGaitNet, gaits: GaitTensors, offsets: torch.Tensor, pa
             for k, v in fed.items():
                 mask = coin.view(-1, *([1] * (v.dim() - 1)))
                 fed[k] = torch.where(mask, truth[k], v)
-        inputs = {**truth, **fed, "theta": theta[:, step:step + 1], "omega": omega[:, step:step + 1]}
+        inputs = {**truth, **fed, "theta": theta[:, step:step + 1], "omega": omega[:, step:step + 1], "fixed": fixed}
         if condition is not None:
             inputs["condition"] = condition[:, None]
         current, hidden = model(inputs, hidden)

@@ -37,7 +37,8 @@ import torch  # noqa: E402
 
 from pipeline.core.emotions import EMOTIONS  # noqa: E402
 from pipeline.core.skeleton import load_skeleton  # noqa: E402
-from pipeline.evaluation.autoregressive import affect_summary, emotion_centroids, straight_path  # noqa: E402
+from pipeline.evaluation.autoregressive import (affect_summary, centroid_distances, emotion_centroids,  # noqa: E402
+                                               straight_path)
 from pipeline.evaluation.controllability import condition_sensitivity, under_each_emotion  # noqa: E402
 from pipeline.generators.autoregressive.rollout import Seeds, place_paths  # noqa: E402
 from pipeline.generators.autoregressive.training import load_checkpoint  # noqa: E402
@@ -86,9 +87,8 @@ def main() -> dict:
         generated = under_each_emotion(model, seeds, paths, args.frames, offsets, skeleton.parents,
                                        replace(placement_config(params), guidance=w))
         summaries = torch.stack([affect_summary(g.positions, low, high, scale) for g in generated])  # (4, N, 18)
-        to_condition = torch.linalg.vector_norm(summaries - centroids[:, None], dim=-1)  # (4, N)
         entry = {"sensitivity": condition_sensitivity(summaries, centroids)["fraction_of_real"],
-                 "to_condition_centroid": round(float(to_condition.mean()), 4),
+                 "to_condition_centroid": centroid_distances(summaries, centroids)["distance_to_same_emotion"],
                  "seconds": round(time.perf_counter() - started, 2)}
         out["by_guidance"][str(w)] = entry
         print(f"guidance {w}: {entry}", flush=True)

@@ -184,25 +184,33 @@ def emotion_centroids(summaries: torch.Tensor, dominant: Sequence[str]) -> torch
 def expressiveness(model: EmotiveGaitNet, seeds: Seeds, centroids: torch.Tensor, offsets: torch.Tensor,
                    parents: Sequence[int], steps: int, placement: PlacementConfig, low: torch.Tensor,
                    high: torch.Tensor, scale: torch.Tensor) -> dict:
-    """Generate from every seed with each one-hot emotion; distances of the generated gaits' affect summaries to
-    the real emotion centroids: same emotion vs the others, and how often the intended centroid is the nearest."""
-    same, other, hits, total = [], [], 0, 0
+    """Generate from every seed with each one-hot emotion and measure them against the real emotion centroids
+    (``centroid_distances``)."""
     paths = place_paths(straight_path(), seeds)
-    per_emotion = {}
-    for k, name in enumerate(EMOTIONS):
+    summaries = []
+    for k in range(len(EMOTIONS)):
         target = torch.zeros(len(seeds), steps, 4)
         target[..., k] = 1.0
         g = generate(model, seeds, paths, target, offsets, parents, placement)
-        summary = affect_summary(g.positions, low, high, scale)
-        dist = torch.cdist(summary.double(), centroids.double())  # (N, 4)
+        summaries.append(affect_summary(g.positions, low, high, scale))
+    return centroid_distances(torch.stack(summaries), centroids)
+
+
+def centroid_distances(summaries: torch.Tensor, centroids: torch.Tensor) -> dict:
+    """summaries (4, N, 18): N gaits generated under each one-hot emotion (EMOTIONS order); centroids (4, 18) real.
+    Distances of the gaits to their own emotion's centroid vs the others, and how often their own is the nearest."""
+    same, other, hits = [], [], 0
+    per_emotion = {}
+    for k, name in enumerate(EMOTIONS):
+        dist = torch.cdist(summaries[k].double(), centroids.double())  # (N, 4)
         same.append(dist[:, k])
         other.append(torch.cat([dist[:, :k], dist[:, k + 1:]], -1).mean(-1))
         nearest = dist.argmin(-1)
         hits += int((nearest == k).sum())
-        total += len(seeds)
         per_emotion[name] = {"distance_same": round(float(dist[:, k].mean()), 4),
                              "nearest_is_intended": round(float((nearest == k).double().mean()), 4)}
     same_t, other_t = torch.cat(same), torch.cat(other)
+    total = summaries.shape[0] * summaries.shape[1]
     return {"distance_to_same_emotion": round(float(same_t.mean()), 4),
             "distance_to_other_emotions": round(float(other_t.mean()), 4),
             "same_closer_than_others": round(float((same_t < other_t).double().mean()), 4),

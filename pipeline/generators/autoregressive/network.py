@@ -149,8 +149,8 @@ class EmotiveGaitNet(nn.Module):
     def forward(self, frames: dict[str, torch.Tensor], hidden: torch.Tensor | None = None
                 ) -> tuple[dict[str, torch.Tensor], torch.Tensor]:
         """frames: q (B, L, 21, 4), affective (B, L, 18), condition (B, L, 5), theta, omega, s, kappa, h, delta
-        (B, L), optionally fixed (B, 21) (``fixed_bones`` of the gait's prefix). Returns the predicted next frames {q (normalised), q_raw, h, s, delta (B, L, ...)} and the GRU
-        state."""
+        (B, L), optionally fixed (B, 21) (``fixed_bones`` of the gait's prefix). Returns the predicted next frames
+        {q (normalised), q_raw, h, s, delta (B, L, ...)} and the GRU state."""
         cond = frames["condition"]
         std = {k: self.standardise(k, frames[k]) for k in SCALARS}
         affect_in = [cond]

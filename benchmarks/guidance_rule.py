@@ -36,20 +36,17 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from pipeline.core.emotions import EMOTIONS  # noqa: E402
-from pipeline.core.skeleton import load_skeleton  # noqa: E402
 from pipeline.evaluation.autoregressive import (affect_summary, centroid_distances, emotion_centroids,  # noqa: E402
                                                straight_path)
 from pipeline.evaluation.controllability import condition_sensitivity, under_each_emotion  # noqa: E402
 from pipeline.generators.autoregressive.rollout import Seeds, place_paths  # noqa: E402
-from pipeline.generators.autoregressive.training import load_checkpoint  # noqa: E402
 from pipeline.io.files import write_json  # noqa: E402
-from pipeline.io.gait_table import read_gaits  # noqa: E402
-from stages.common import SKELETON, load_params  # noqa: E402
+from stages.common import load_params  # noqa: E402
 from stages.configs import placement_config  # noqa: E402
 
+from generator_data import generator, split_gaits  # noqa: E402
+
 OUT = REPO / "benchmarks" / "out" / "guidance_rule.json"
-GAITS = REPO / "data" / "split" / "gaits.parquet"
-MODEL = REPO / "data" / "models" / "full.pt"
 
 
 def main() -> dict:
@@ -59,20 +56,14 @@ def main() -> dict:
     args = parser.parse_args()
     torch.set_num_threads(2)
     params = load_params()
-    table, arrays = read_gaits(GAITS)
-    split = np.array(table.column("split").to_pylist())
-    content = np.array(table.column("content").to_pylist())
-    labelled = ~np.isnan(arrays["emotion"]).any(-1)
-    dominant = np.where(labelled, np.nan_to_num(arrays["emotion"]).argmax(-1), -1)
-    skeleton = load_skeleton(SKELETON)
-    offsets = torch.from_numpy(skeleton.offsets).to(torch.float32)
-    model, _, sha = load_checkpoint(MODEL)
+    arrays, split, content, dominant = split_gaits()
+    model, sha, skeleton, offsets = generator()
     low, high, scale = model.affective_low, model.affective_high, model.affective_std
 
     def summary(rows: np.ndarray) -> torch.Tensor:
         return affect_summary(torch.from_numpy(arrays["positions"][rows]), low, high, scale)
 
-    walks = labelled & (content == "walk")  # the published gaits are walks: compared with real walks only
+    walks = (dominant >= 0) & (content == "walk")  # the published gaits are walks: compared with real walks only
     train = np.flatnonzero((split == "train") & walks)
     centroids = emotion_centroids(summary(train), [EMOTIONS[d] for d in dominant[train]])
     val = np.flatnonzero((split == "val") & walks)

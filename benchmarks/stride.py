@@ -31,18 +31,15 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from pipeline.core.emotions import EMOTIONS  # noqa: E402
-from pipeline.core.skeleton import load_skeleton  # noqa: E402
 from pipeline.evaluation.autoregressive import straight_path  # noqa: E402
 from pipeline.generators.autoregressive.rollout import Seeds, generate, place_paths  # noqa: E402
-from pipeline.generators.autoregressive.training import load_checkpoint  # noqa: E402
 from pipeline.io.files import write_json  # noqa: E402
-from pipeline.io.gait_table import read_gaits  # noqa: E402
-from stages.common import SKELETON, load_params  # noqa: E402
+from stages.common import load_params  # noqa: E402
 from stages.configs import placement_config  # noqa: E402
 
+from generator_data import generator, split_gaits  # noqa: E402
+
 OUT = REPO / "benchmarks" / "out" / "stride.json"
-GAITS = REPO / "data" / "split" / "gaits.parquet"
-MODEL = REPO / "data" / "models" / "full.pt"
 FRAMES = 60
 BLOCK = 20
 
@@ -58,14 +55,8 @@ def main() -> dict:
     torch.set_num_threads(2)
     params = load_params()
     prefix = int(params["train"]["prefix"])
-    table, arrays = read_gaits(GAITS)
-    split = np.array(table.column("split").to_pylist())
-    content = np.array(table.column("content").to_pylist())
-    labelled = ~np.isnan(arrays["emotion"]).any(-1)
-    dominant = np.where(labelled, np.nan_to_num(arrays["emotion"]).argmax(-1), -1)
-    skeleton = load_skeleton(SKELETON)
-    offsets = torch.from_numpy(skeleton.offsets).to(torch.float32)
-    model, _, sha = load_checkpoint(MODEL)
+    arrays, split, content, dominant = split_gaits()
+    model, sha, skeleton, offsets = generator()
     plain = replace(placement_config(params), root_smoothing_s=0.0, path_fit_s=0.0, foot_lock=False)
     placements = {"stance_foot": replace(plain, root_advance="stance_foot"),
                   "lowest_point": replace(plain, root_advance="stance_foot", stance_fraction=1.0),

@@ -14,7 +14,7 @@ from typing import Any
 import torch
 
 from pipeline.audit.metrics import AuditConfig
-from pipeline.audit.report import verdict_lines
+from pipeline.audit.report import control_line, verdict_lines
 from pipeline.audit.run import audit_directory
 from stages.common import REPO, load_params
 
@@ -33,6 +33,9 @@ def main(params_path: Path | None = None, directory: Path = PUBLISHED, out: Path
           f"({time.perf_counter() - started:.0f} s)")
     for family, verdict in verdict_lines(metrics["recognisability"]):
         print(f"audit: {family}: {verdict}")
+    control = control_line(metrics["recognisability"])
+    if control:
+        print(f"audit: {control}")
     memo = metrics.get("memorisation", {})
     if "check" in memo:
         print(f"audit: nearest train window, median: synthetic {memo['synthetic']['median']:.3f} m, real held-out "

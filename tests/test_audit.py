@@ -15,9 +15,11 @@ import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pytest
+import torch
 
 from pipeline.audit.metrics import (
     AuditConfig,
+    augmentation_controls,
     augmentation_draw,
     clip_identity,
     describe_affective_feature,
@@ -30,14 +32,14 @@ from pipeline.audit.metrics import (
     recognisability,
     steady_label,
 )
-from pipeline.audit.report import content_rows, verdict_lines
+from pipeline.audit.report import content_rows, control_line, verdict_lines
 from pipeline.audit.run import audit_frame
 from pipeline.core.emotions import EMOTIONS, dominant_emotion
 from pipeline.core.skeleton import canonical_skeleton
-from pipeline.ops.features import AFFECTIVE_FEATURES, AFFECTIVE_NAMES, MOVEMENT_NAMES
+from pipeline.ops.features import AFFECTIVE_FEATURES, AFFECTIVE_NAMES, MOVEMENT_NAMES, affective_features
 from pipeline.dataset import write_sha256sums
 from pipeline.io.gait_table import array_column, column_array
-from pipeline.recognition import RECOGNISERS, RecogniserConfig, majority_baseline, scores
+from pipeline.recognition import RECOGNISERS, RecogniserConfig, RecognitionInputs, majority_baseline, scores
 from pipeline.publish.table import generator_entry
 from stages.audit import main as audit
 from tests.test_croissant_provenance import _publish, _published_table
@@ -268,6 +270,24 @@ def test_the_audit_metrics_carry_both_recognisers_intervals_and_memorisation(pag
                 assert -1.0 <= lo <= hi <= 1.0 and s in entry[f"{key}_delta"]
     # 48 labelled real train gaits, one synthetic per real: all 20 synthetic gaits (none has per-frame labels)
     assert r["augmentation"]["drawn"] == {"all": 20} and r["augmentation"]["eligible"] == {"all": 20}
+    # the controls: the same protocol with the 48 real train gaits added again, and with their mirror images
+    assert list(r["augmentation"]["controls"]) == ["repeated", "mirrored"]
+    assert all(c["gaits"] == 48 for c in r["augmentation"]["controls"].values())
+    for kind in RECOGNISERS:
+        entry = r["by_recogniser"][kind]
+        assert list(entry["augmentation_controls"]) == ["repeated", "mirrored"]
+        for control in entry["augmentation_controls"].values():
+            held = control["augmented_real_held_out"]
+            assert held["gaits"] == 24 and held["clips"] == 12
+            for s in ("accuracy", "balanced_accuracy", "macro_f1"):
+                assert control["augmentation_delta"][s] == pytest.approx(
+                    held[f"{s}_mean"] - entry["real_held_out"][f"{s}_mean"], abs=1e-4)
+                lo, hi = control["augmentation_delta_ci95"][s]
+                assert -1.0 <= lo <= hi <= 1.0
+    line = control_line(r)
+    assert html.escape(line) in text and line.count("pts (CI ") == 2 * len(RECOGNISERS)
+    mlp = r["by_recogniser"]["summary_mlp"]["augmentation_controls"]["mirrored"]["augmentation_delta"]["macro_f1"]
+    assert "the real train gaits' mirror images (48 gaits): summary MLP " + ("−" if mlp < 0 else "+") in line
     memo = metrics["memorisation"]
     assert memo["train_windows"] == 53 and memo["real_held_out"]["gaits"] == 24 and memo["synthetic"]["gaits"] == 20
     for key in ("real_held_out", "synthetic"):
@@ -417,3 +437,29 @@ def test_the_page_says_so_without_a_classifier_or_without_synthetic_gaits(tmp_pa
         page = (tmp_path / name / "index.html").read_text()
         (verdict,) = re.findall(r'<li class="verdict">(.*?)</li>', page, re.S)
         assert ("no emotion recogniser" if name == "no_test" else "no labelled synthetic gaits") in verdict
+
+
+def test_the_controls_are_the_real_train_gaits_again_and_their_true_mirror_images():
+    frame, _ = _frame()
+    train = frame[(frame["kind"] == "real") & (frame["split"] == "train")]
+    inputs = RecognitionInputs.from_frame(train)
+    # affective features that belong to the poses, so the mirror image's can be checked against its poses
+    inputs = dataclasses.replace(inputs, affective=affective_features(torch.from_numpy(inputs.positions)).numpy())
+    controls = augmentation_controls(inputs)
+    assert list(controls) == ["repeated", "mirrored"] and controls["repeated"] is inputs
+    image = controls["mirrored"]
+    assert len(image) == len(inputs) and image.frames == inputs.frames
+    assert not np.allclose(image.positions, inputs.positions)
+    # the mirror image's affective features are those its poses have; its movement is the original's
+    assert np.allclose(image.affective, affective_features(torch.from_numpy(image.positions)).numpy(), atol=1e-4)
+    assert np.array_equal(image.movement, inputs.movement)
+    # mirroring twice gives the gaits back
+    again = augmentation_controls(image, ["mirrored"])["mirrored"]
+    assert np.allclose(again.positions, inputs.positions, atol=1e-6)
+    assert np.allclose(again.affective, inputs.affective, atol=1e-6)
+    assert np.allclose(np.cos(again.heading - inputs.heading), 1.0, atol=1e-5)
+    with pytest.raises(KeyError, match="audit.augmentation.controls: expected names among repeated, mirrored, "
+                                       "found shuffled"):
+        AuditConfig.from_dict({"seeds": {"summary_mlp": [0]}, "augmentation": {"controls": ["shuffled"]}})
+    assert AuditConfig.from_dict({"seeds": {"summary_mlp": [0]},
+                                  "augmentation": {"controls": []}}).augmentation_controls == ()

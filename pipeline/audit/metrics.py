@@ -24,9 +24,12 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+import torch
 from pipeline.core.emotions import dominant_emotion
+from pipeline.core.skeleton import canonical_skeleton
 from pipeline.dataset import directory_metadata, directory_schema, load_dataframe, verify
 from pipeline.io.files import schema_meta
+from pipeline.ops.mirror import mirror_gait
 from pipeline.recognition import (
     RECOGNISER_NAMES,
     RECOGNISERS,
@@ -292,24 +295,60 @@ class AuditConfig:
     # from those whose label holds in every frame; and, beside it, every synthetic gait at weight one
     synthetic_per_real: float = 1.0
     augment_with_all: bool = True
+    # beside them, real gaits added in place of synthetic ones (``AUGMENTATION_CONTROLS``), to read a change against
+    augmentation_controls: tuple[str, ...] = ("repeated", "mirrored")
 
     @classmethod
     def from_dict(cls, p: dict[str, Any]) -> "AuditConfig":
         """From params.yaml ``audit`` (recognisers, seeds per recogniser, test_splits, bootstrap_resamples,
-        memorisation {frame_stride, candidates}, augmentation {synthetic_per_real, with_all})."""
+        memorisation {frame_stride, candidates}, augmentation {synthetic_per_real, with_all, controls})."""
         seeds = {k: tuple(int(s) for s in v) for k, v in p["seeds"].items()}
         unknown = set(seeds) - set(RECOGNISERS)
         if unknown:
             raise KeyError(f"audit.seeds: expected recognisers among {', '.join(RECOGNISERS)}, found "
                            f"{', '.join(sorted(unknown))}")
         m, a = p.get("memorisation", {}), p.get("augmentation", {})
+        controls = tuple(a.get("controls", cls.augmentation_controls))
+        if set(controls) - set(AUGMENTATION_CONTROLS):
+            raise KeyError(f"audit.augmentation.controls: expected names among {', '.join(AUGMENTATION_CONTROLS)}, "
+                           f"found {', '.join(sorted(set(controls) - set(AUGMENTATION_CONTROLS)))}")
         return cls(recognisers=RecogniserConfig.from_dict(p.get("recognisers")), seeds=seeds,
                    test_splits=tuple(p.get("test_splits", cls.test_splits)),
                    bootstrap_resamples=int(p.get("bootstrap_resamples", cls.bootstrap_resamples)),
                    memorisation_frame_stride=int(m.get("frame_stride", cls.memorisation_frame_stride)),
                    memorisation_candidates=int(m.get("candidates", cls.memorisation_candidates)),
                    synthetic_per_real=float(a.get("synthetic_per_real", cls.synthetic_per_real)),
-                   augment_with_all=bool(a.get("with_all", cls.augment_with_all)))
+                   augment_with_all=bool(a.get("with_all", cls.augment_with_all)),
+                   augmentation_controls=controls)
+
+
+AUGMENTATION_CONTROLS = {
+    "repeated": "the same real train gaits again",
+    "mirrored": "the real train gaits' mirror images",
+}
+
+
+def augmentation_controls(inputs: RecognitionInputs, names: Sequence[str] = tuple(AUGMENTATION_CONTROLS)
+                          ) -> dict[str, RecognitionInputs]:
+    """Real gaits to add to a recogniser's real training gaits (``inputs``, in their order, so their labels are
+    the same) in place of synthetic ones, so that a generator's augmentation change is read against what real data
+    does under the same protocol: ``repeated``, the same gaits again (nothing new: its change is the refit's own
+    noise), and ``mirrored``, their left-right mirror images (``ops.mirror``; a mirrored sad walk is a sad walk,
+    so a recogniser that loses from them leans on which side the recorded performers favour, a cue no mirrored or
+    newly generated gait keeps)."""
+    out: dict[str, RecognitionInputs] = {}
+    for name in names:
+        if name == "repeated":
+            out[name] = inputs
+        elif name == "mirrored":
+            arrays = {"positions": inputs.positions, "heading": inputs.heading, "affective": inputs.affective,
+                      "movement": inputs.movement}
+            image = mirror_gait({k: torch.from_numpy(np.ascontiguousarray(v)) for k, v in arrays.items()},
+                                canonical_skeleton())
+            out[name] = RecognitionInputs.from_arrays({k: v.numpy() for k, v in image.items()})
+        else:
+            raise KeyError(f"augmentation control: expected one of {', '.join(AUGMENTATION_CONTROLS)}, found {name!r}")
+    return out
 
 
 def clip_identity(frame: pd.DataFrame) -> np.ndarray:
@@ -448,6 +487,9 @@ def recognisability(frame: pd.DataFrame, names: Sequence[str], cfg: AuditConfig 
       (``augmented_real_held_out``; ``augmentation_delta`` and its paired interval ``augmentation_delta_ci95``).
       Beside it (``cfg.augment_with_all``), the naive use: every synthetic gait at weight one
       (``augmented_all_real_held_out``, ``augmentation_all_delta``, ``augmentation_all_delta_ci95``).
+    * augmentation controls (``cfg.augmentation_controls``, ``augmentation_controls``): the same protocol with real
+      gaits added instead (``augmentation_controls()``: the real train gaits again; their mirror images), each with
+      its change and paired interval: what a generator's change is read against.
 
     Where the held-out gaits include contents no synthetic gait has (``held_out_by_content``), the same
     predictions are also scored on each part (``by_content``: real-only and augmented, with the change).
@@ -489,8 +531,12 @@ def recognisability(frame: pd.DataFrame, names: Sequence[str], cfg: AuditConfig 
         "synthetic_per_real": cfg.synthetic_per_real,
         "eligible": {n: int((m & steady).sum()) for n, m in sets.items()},
         "drawn": {n: min(drawn_count, int((m & steady).sum())) for n, m in sets.items()},
-        "also_all_synthetic": cfg.augment_with_all}
+        "also_all_synthetic": cfg.augment_with_all,
+        "controls": {n: {"added": f"{AUGMENTATION_CONTROLS[n]} ({int(train.sum())} gaits)", "gaits": int(train.sum())}
+                     for n in cfg.augmentation_controls}}
     held = inputs.select(test)
+    real_train = inputs.select(train)
+    controls = augmentation_controls(real_train, cfg.augmentation_controls)
     r_args = (cfg.bootstrap_resamples,)
     by_content = held_out_by_content(frame, test)
     if by_content:
@@ -507,10 +553,15 @@ def recognisability(frame: pd.DataFrame, names: Sequence[str], cfg: AuditConfig 
         on_synthetic = {n: [] for n, m in sets.items() if m.any()}
         augmented = {n: [] for n in on_synthetic}
         augmented_all = {n: [] for n in on_synthetic}
+        controlled: dict[str, list[np.ndarray]] = {n: [] for n in controls}
         for seed in seeds:
             started = time.perf_counter()
-            recogniser = fit_recogniser(kind, inputs.select(train), label[train], cfg.recognisers, seed)
+            recogniser = fit_recogniser(kind, real_train, label[train], cfg.recognisers, seed)
             predicted["real_held_out"].append(recogniser.predict(held))
+            for name, added in controls.items():
+                again = fit_recogniser(kind, RecognitionInputs.concatenate([real_train, added]),
+                                       np.concatenate([label[train], label[train]]), cfg.recognisers, seed)
+                controlled[name].append(again.predict(held))
             for name in on_synthetic:
                 on_synthetic[name].append(recogniser.predict(inputs.select(sets[name])))
                 both = train.copy()
@@ -530,6 +581,13 @@ def recognisability(frame: pd.DataFrame, names: Sequence[str], cfg: AuditConfig 
 
         entry: dict[str, Any] = {"name": RECOGNISER_NAMES[kind],
                                  "real_held_out": summary(test, predicted["real_held_out"])}
+        entry["augmentation_controls"] = {}
+        for name, answers in controlled.items():
+            c = {"augmented_real_held_out": summary(test, answers)}
+            c["augmentation_delta"], c["augmentation_delta_ci95"] = _delta(
+                c["augmented_real_held_out"], entry["real_held_out"], groups[test], label[test],
+                predicted["real_held_out"], answers, k, *r_args)
+            entry["augmentation_controls"][name] = c
         per_set: dict[str, dict[str, Any]] = {}
         for name in on_synthetic:
             e = {"synthetic": summary(sets[name], on_synthetic[name]),

@@ -312,6 +312,25 @@ def verdict_lines(recognition: dict[str, Any]) -> list[tuple[str, str]]:
     return lines
 
 
+def control_line(recognition: dict[str, Any]) -> str | None:
+    """One sentence: what the augmentation protocol does with real gaits added instead of synthetic ones
+    (``augmentation_controls``: macro-F1 change per recogniser with its interval), the yardstick a family's
+    augmentation change is read against; None without controls."""
+    about = recognition.get("augmentation", {}).get("controls", {})
+    recognisers = recognition.get("by_recogniser", {})
+    parts = []
+    for name, what in about.items():
+        changes = [f"{e['name']} {points(c['augmentation_delta']['macro_f1'])} "
+                   f"({interval(c['augmentation_delta_ci95']['macro_f1'], as_points=True)})"
+                   for e in recognisers.values() if (c := e.get("augmentation_controls", {}).get(name))]
+        if changes:
+            parts.append(f"{what['added']}: " + ", ".join(changes))
+    if not parts:
+        return None
+    return (f"Controls: the same augmentation with real gaits added instead of synthetic ones, macro-F1 on "
+            f"{held_out_name(recognition)} — " + "; ".join(parts))
+
+
 # -------------------------------------------------------------------------------------------------- page
 
 def _cell(value: Any) -> str:
@@ -350,10 +369,22 @@ def _recognition_rows(recognition: dict[str, Any]) -> list[dict[str, str]]:
                     f"{m['class']}: {percent(m['accuracy'])} · {percent(m['balanced_accuracy'])} · "
                     f"{percent(m['macro_f1'])}"}
 
+    def change_row(recogniser: str, trained: str, r: dict[str, Any]) -> dict[str, str]:
+        d, ci = r["augmentation_delta"], r["augmentation_delta_ci95"]
+        return {"recogniser": recogniser, "tested on": held, "trained on": trained, "gaits (clips)": "",
+                **{f"{label}: {spread}": f"{points(d[s])} ({interval(ci[s], as_points=True)})"
+                   for s, label in (("accuracy", "accuracy"), ("balanced_accuracy", "balanced accuracy"),
+                                    ("macro_f1", "macro-F1"))},
+                "majority class: accuracy · balanced · macro-F1": ""}
+
     rows = []
     for kind, entry in recognition["by_recogniser"].items():
         who = f"{entry['name']} ({number(len(recognition['seeds'][kind]))} seeds)"
         rows.append(row(who, held, train, entry["real_held_out"]))
+        for name, control in entry.get("augmentation_controls", {}).items():
+            added = f"{recognition['augmentation']['controls'][name]['added']}, a control"
+            rows.append(row(who, held, f"{train} + {added}", control["augmented_real_held_out"]))
+            rows.append(change_row(who, f"change from adding {added}", control))
         for name, family in entry.get("families", {}).items():
             if "synthetic" not in family:
                 continue
@@ -366,12 +397,9 @@ def _recognition_rows(recognition: dict[str, Any]) -> list[dict[str, str]]:
                 if result is None:
                     continue
                 rows.append(row(who, held, f"{train} + {added}", result))
-                d, ci = family[f"{key}_delta"], family[f"{key}_delta_ci95"]
-                change = {f"{label}: {spread}": f"{points(d[s])} ({interval(ci[s], as_points=True)})"
-                          for s, label in (("accuracy", "accuracy"), ("balanced_accuracy", "balanced accuracy"),
-                                           ("macro_f1", "macro-F1"))}
-                rows.append({"recogniser": who, "tested on": held, "trained on": f"change from adding {added}",
-                             "gaits (clips)": "", **change, "majority class: accuracy · balanced · macro-F1": ""})
+                rows.append(change_row(who, f"change from adding {added}",
+                                       {"augmentation_delta": family[f"{key}_delta"],
+                                        "augmentation_delta_ci95": family[f"{key}_delta_ci95"]}))
     return rows
 
 
@@ -450,6 +478,8 @@ def write_html(path: Path, title: str, metrics: dict[str, Any], problems: list[d
     recognition = metrics.get("recognisability", {})
     verdicts = "".join(f'<li class="verdict"><b>{html.escape(name)}</b>: {html.escape(text)}.</li>'
                        for name, text in verdict_lines(recognition))
+    control = control_line(recognition)
+    controls = f'<p class="controls">{html.escape(control)}.</p>' if control else ""
     js = metrics["labels"].get("js_distance_real_vs_synthetic")
     overview = [
         {"figure": "gaits", "value": f"{number(metrics['gaits'])} ({listing(metrics['kinds'])})"},
@@ -488,9 +518,9 @@ def write_html(path: Path, title: str, metrics: dict[str, Any], problems: list[d
 table{{border-collapse:collapse;font-size:13px;margin:0.5em 0}}td,th{{border:1px solid #ccc;padding:3px 8px;
 text-align:left;vertical-align:top}}th{{background:#f3f3f3}}img{{max-width:100%}}figure{{margin:1.5em 0}}
 figcaption{{font-size:13px;color:#333}}ul.verdicts{{font-size:17px;line-height:1.5;padding-left:1.2em}}
-li.verdict{{margin:0.3em 0}}table.recognition td:nth-child(n+4){{white-space:nowrap}}</style></head><body>
+li.verdict{{margin:0.3em 0}}p.controls{{font-size:15px}}table.recognition td:nth-child(n+4){{white-space:nowrap}}</style></head><body>
 <h1>{html.escape(title)}</h1>
-<h2>Verdict</h2><ul class="verdicts">{verdicts}</ul>
+<h2>Verdict</h2><ul class="verdicts">{verdicts}</ul>{controls}
 <h2>Overview</h2>{_table(overview)}
 <h2>Emotion recognition</h2>
 <p>Accuracy, balanced accuracy (mean recall over the emotions present) and macro-F1: mean ± spread in points over

@@ -9,6 +9,7 @@ import pytest
 import torch
 
 from pipeline.core.emotions import EMOTIONS
+from pipeline.ops.features import AFFECTIVE_NAMES, affective_features
 from pipeline.generators.autoregressive.critic import (CriticConfig, fit_critic, random_crops, style_loss,
                                                      style_match_loss)
 from pipeline.generators.autoregressive.fit import mirrored
@@ -116,6 +117,38 @@ def test_the_critic_keeps_the_real_centroids_and_a_real_window_is_nearest_its_ow
             (truth + k) % 4, 4).float()) for k in (1, 2, 3)]).mean(0)
     assert float((own < other).double().mean()) > 0.6  # held-out real windows: nearer their own emotion's statistics
     assert float(style_match_loss(critic, pose[:4], fit.condition[:4, :4])) > 0
+
+
+def test_style_matching_sees_a_posture_past_the_real_range_that_the_critic_cannot(labelled, critic, offsets,
+                                                                                skeleton):
+    """A head tilted towards the right shoulder past anything real gaits do: the critic reads the angle at the
+    neck clamped to the real range (it cannot reward going further), and style matching reads it as it is, so it
+    pulls such a posture back; clamped, it would see no difference between two such tilts."""
+    arrays, _, held_rows = labelled
+    critic, _, _ = critic
+    held = GaitTensors.from_arrays(arrays, held_rows[:6])
+    pose = travel_frame_positions(held.q, offsets, skeleton.parents)[:, 18:]
+    names = list(AFFECTIVE_NAMES)
+    r = names.index("angle_12_11_17")  # the angle at the neck between the head and the right shoulder
+
+    def tilted(share: float) -> torch.Tensor:
+        out = pose.clone()
+        out[:, :, 12] = pose[:, :, 12] + share * (pose[:, :, 17] - pose[:, :, 12])
+        return out
+
+    some, more = tilted(0.4), tilted(0.6)
+    assert float(affective_features(some)[..., r].max()) < float(critic.affective_low[r])  # past the real range
+    for bounded, differs in ((True, False), (False, True)):
+        a, b = critic.statistics(some, bounded)[:, r], critic.statistics(more, bounded)[:, r]
+        assert (not torch.allclose(a, b)) is differs
+    target = held.condition[:, :4]
+    wanted = target @ critic.centroids
+    for p in (pose, some, more):
+        expected = torch.nn.functional.huber_loss(critic.standardised(p, bounded=False), wanted, reduction="none",
+                                                  delta=1.0).mean()
+        assert torch.allclose(style_match_loss(critic, p, target), expected)
+    assert float(style_match_loss(critic, more, target)) > float(style_match_loss(critic, some, target)) \
+        > float(style_match_loss(critic, pose, target))
 
 
 def test_mismatched_conditions_change_only_labelled_gaits_and_stay_on_the_simplex(labelled):

@@ -61,6 +61,7 @@ def main() -> dict:
     test = real & frame["split"].isin(cfg.test_splits).to_numpy() & usable
     views = {"all": np.ones(int(test.sum()), bool), **held_out_by_content(frame, test)}
     steady = steady_label(frame)
+    families = generator_families(frame)
     real_train, held, y = inputs.select(train), inputs.select(test), label[test]
     mirrored = augmentation_controls(real_train, ["mirrored"])["mirrored"]
     bases = {"real_only": (real_train, label[train]),
@@ -81,7 +82,7 @@ def main() -> dict:
             for base, (x, labels) in bases.items():
                 before = macro_f1(fit_recogniser(kind, x, labels, cfg.recognisers, seed).predict(held))
                 figures.setdefault(base, []).append(before)
-                for family, mask in generator_families(frame).items():
+                for family, mask in families.items():
                     drawn = augmentation_draw(np.flatnonzero(mask & usable & steady), int(train.sum()), seed)
                     both = RecognitionInputs.concatenate([x, inputs.select(drawn)])
                     after = macro_f1(fit_recogniser(kind, both, np.concatenate([labels, label[drawn]]),
@@ -92,7 +93,7 @@ def main() -> dict:
         entry = {"macro_f1": {b: mean[b] for b in bases},
                  "mirror_images_change": {v: round(mean["real_and_mirrored"][v] - mean["real_only"][v], 4)
                                           for v in views},
-                 "augmentation_change": {b: {f: mean[f"{b} + {f}"] for f in generator_families(frame)}
+                 "augmentation_change": {b: {f: mean[f"{b} + {f}"] for f in families}
                                          for b in bases},
                  "seconds": round(time.perf_counter() - started, 1)}
         out["recognisers"][kind] = entry

@@ -581,25 +581,22 @@ def recognisability(frame: pd.DataFrame, names: Sequence[str], cfg: AuditConfig 
 
         entry: dict[str, Any] = {"name": RECOGNISER_NAMES[kind],
                                  "real_held_out": summary(test, predicted["real_held_out"])}
-        entry["augmentation_controls"] = {}
-        for name, answers in controlled.items():
-            c = {"augmented_real_held_out": summary(test, answers)}
-            c["augmentation_delta"], c["augmentation_delta_ci95"] = _delta(
-                c["augmented_real_held_out"], entry["real_held_out"], groups[test], label[test],
-                predicted["real_held_out"], answers, k, *r_args)
-            entry["augmentation_controls"][name] = c
+
+        def augmented_by(answers: list[np.ndarray], key: str = "augmentation") -> dict[str, Any]:
+            """The held-out figures of recognisers trained with something added, their change from real-only
+            and its paired interval, under ``{key}`` names (``augmentation`` -> ``augmented_real_held_out``)."""
+            held_out = summary(test, answers)
+            delta, ci = _delta(held_out, entry["real_held_out"], groups[test], label[test],
+                               predicted["real_held_out"], answers, k, *r_args)
+            prefix = "augmented" + key.removeprefix("augmentation")
+            return {f"{prefix}_real_held_out": held_out, f"{key}_delta": delta, f"{key}_delta_ci95": ci}
+
+        entry["augmentation_controls"] = {name: augmented_by(answers) for name, answers in controlled.items()}
         per_set: dict[str, dict[str, Any]] = {}
         for name in on_synthetic:
-            e = {"synthetic": summary(sets[name], on_synthetic[name]),
-                 "augmented_real_held_out": summary(test, augmented[name])}
-            e["augmentation_delta"], e["augmentation_delta_ci95"] = _delta(
-                e["augmented_real_held_out"], entry["real_held_out"], groups[test], label[test],
-                predicted["real_held_out"], augmented[name], k, *r_args)
+            e = {"synthetic": summary(sets[name], on_synthetic[name]), **augmented_by(augmented[name])}
             if augmented_all[name]:
-                e["augmented_all_real_held_out"] = summary(test, augmented_all[name])
-                e["augmentation_all_delta"], e["augmentation_all_delta_ci95"] = _delta(
-                    e["augmented_all_real_held_out"], entry["real_held_out"], groups[test], label[test],
-                    predicted["real_held_out"], augmented_all[name], k, *r_args)
+                e.update(augmented_by(augmented_all[name], "augmentation_all"))
             per_set[name] = e
         if by_content:
             entry["by_content"] = _content_breakdown(by_content, names, groups[test], label[test],

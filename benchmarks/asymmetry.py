@@ -30,6 +30,7 @@ from pipeline.audit.metrics import (  # noqa: E402
     AuditConfig,
     augmentation_controls,
     generator_families,
+    labelled_gaits,
     load_for_audit,
     steady_label,
 )
@@ -53,11 +54,7 @@ def main() -> dict:
     frame, meta = load_for_audit(PUBLISHED)
     names = meta["emotion_order"]
     inputs = RecognitionInputs.from_frame(frame)
-    index = {n: i for i, n in enumerate(names)}
-    label = np.array([index.get(d, -1) for d in frame["dominant"]])
-    real, usable = (frame["kind"] == "real").to_numpy(), (label >= 0) & inputs.finite()
-    train = real & (frame["split"] == "train").to_numpy() & usable
-    held = real & frame["split"].isin(cfg.test_splits).to_numpy() & usable
+    label, usable, train, held = labelled_gaits(frame, names, inputs, cfg.test_splits)
     values = asymmetry(inputs.affective)
     groups = {"real_train": (values[train], label[train]), "real_held_out": (values[held], label[held])}
     mirrored = augmentation_controls(inputs.select(train), ["mirrored"])["mirrored"]

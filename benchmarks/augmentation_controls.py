@@ -37,6 +37,7 @@ from pipeline.audit.metrics import (  # noqa: E402
     augmentation_draw,
     generator_families,
     held_out_by_content,
+    labelled_gaits,
     load_for_audit,
     steady_label,
 )
@@ -54,11 +55,7 @@ def main() -> dict:
     frame, meta = load_for_audit(PUBLISHED)
     names = meta["emotion_order"]
     inputs = RecognitionInputs.from_frame(frame)
-    index = {n: i for i, n in enumerate(names)}
-    label = np.array([index.get(d, -1) for d in frame["dominant"]])
-    real, usable = (frame["kind"] == "real").to_numpy(), (label >= 0) & inputs.finite()
-    train = real & (frame["split"] == "train").to_numpy() & usable
-    test = real & frame["split"].isin(cfg.test_splits).to_numpy() & usable
+    label, usable, train, test = labelled_gaits(frame, names, inputs, cfg.test_splits)
     views = {"all": np.ones(int(test.sum()), bool), **held_out_by_content(frame, test)}
     steady = steady_label(frame)
     families = generator_families(frame)

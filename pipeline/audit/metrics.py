@@ -472,6 +472,19 @@ def _content_breakdown(views: dict[str, np.ndarray], names: Sequence[str], group
     return out
 
 
+def labelled_gaits(frame: pd.DataFrame, names: Sequence[str], inputs: RecognitionInputs,
+                   test_splits: Sequence[str]) -> tuple[np.ndarray, ...]:
+    """(label, usable, real train, real held-out) per gait: the dominant emotion's index in ``names`` (-1: none
+    of them), whether the gait has a label and finite values (a gait with a NaN is a problem, listed, not something
+    to recognise), and the usable real gaits of the train split and of ``test_splits``."""
+    index = {n: i for i, n in enumerate(names)}
+    label = np.array([index.get(d, -1) for d in frame["dominant"]])
+    usable = (label >= 0) & inputs.finite()
+    real = (frame["kind"] == "real").to_numpy()
+    train = real & (frame["split"] == "train").to_numpy() & usable
+    return label, usable, train, real & frame["split"].isin(test_splits).to_numpy() & usable
+
+
 def recognisability(frame: pd.DataFrame, names: Sequence[str], cfg: AuditConfig = AuditConfig(),
                     inputs: RecognitionInputs | None = None, progress: bool = False) -> dict[str, Any]:
     """Both independent recognisers (``recognition.RECOGNISERS``), each over its seeds (``cfg.seeds``; mean and
@@ -499,15 +512,10 @@ def recognisability(frame: pd.DataFrame, names: Sequence[str], cfg: AuditConfig 
     same figures). ``inputs``: the frame's ``RecognitionInputs`` where already built.
     """
     inputs = RecognitionInputs.from_frame(frame) if inputs is None else inputs
-    index = {n: i for i, n in enumerate(names)}
-    label = np.array([index.get(d, -1) for d in frame["dominant"]])
+    label, usable, train, test = labelled_gaits(frame, names, inputs, cfg.test_splits)
     groups = clip_identity(frame)
-    finite = inputs.finite()  # a gait with a NaN is a problem (listed), not something to recognise
-    real, synthetic = (frame["kind"] == "real").to_numpy(), (frame["kind"] == "synthetic").to_numpy()
-    usable = (label >= 0) & finite
-    train = real & (frame["split"] == "train").to_numpy() & usable
-    test = real & frame["split"].isin(cfg.test_splits).to_numpy() & usable
-    syn = synthetic & usable
+    finite = inputs.finite()
+    syn = (frame["kind"] == "synthetic").to_numpy() & usable
     families = {n: m & usable for n, m in generator_families(frame).items()}
     separate = len(families) > 1  # one family: its figures are those of all synthetic gaits
     k = len(names)

@@ -383,6 +383,19 @@ def test_no_cell_of_the_page_is_a_raw_list_or_dict(page):
     assert any(c.startswith("values 0, 0.5") for c in cells)  # a problem's finding, formatted
 
 
+def test_the_recognition_table_breaks_each_figure_from_its_interval(page):
+    # seen in Chromium at 1280 px: one line per figure and interval made the table wider than the page
+    _, text = page
+    table = re.search(r'<table class="recognition">(.*?)</table>', text, re.S).group(1)
+    head = [html.unescape(h) for h in re.findall(r"<th>(.*?)</th>", table)]
+    assert head[4:7] == ["accuracy", "balanced accuracy", "macro-F1"] and max(map(len, head[:6])) <= 20
+    rows = [[html.unescape(c) for c in re.findall(r"<td>(.*?)</td>", r, re.S)] for r in re.findall(r"<tr>(.*?)</tr>", table, re.S)]
+    figures = [c for r in rows if r for c in r[4:7]]
+    assert len(figures) >= 3 * 4 and all(len(c.split("\n")) == 2 for c in figures)
+    assert all(c.split("\n")[1].startswith("(CI ") and max(map(len, c.split("\n"))) <= 28 for c in figures)
+    assert "table.recognition td{white-space:pre-line}" in text
+
+
 def test_every_affective_feature_on_the_page_is_named_in_words_beside_its_index(page):
     _, text = page
     plain = _text(text)

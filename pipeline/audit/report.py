@@ -351,31 +351,33 @@ def _table(rows: Sequence[dict[str, Any]], limit: int | None = None, css: str = 
     return f'<table class="{css}"><tr>{head}</tr>{body}</table>{more}'
 
 
+# the recognition table's last column; its figures' columns say what they hold in the paragraph above the table
+MAJORITY = "majority class: accuracy · balanced · macro-F1"
+
+
 def _recognition_rows(recognition: dict[str, Any]) -> list[dict[str, str]]:
     if "by_recogniser" not in recognition:
         return []
     held = held_out_name(recognition)
     train = f"{number(recognition['gaits']['real_train'])} real train"
-    spread = "mean ± spread over seeds (95 % interval over clips)"
 
     def row(recogniser: str, tested: str, trained: str, r: dict[str, Any]) -> dict[str, str]:
         m = r["majority_baseline"]
         return {"recogniser": recogniser, "tested on": tested, "trained on": trained,
                 "gaits (clips)": f"{number(r['gaits'])} ({number(r['clips'])})",
-                **{f"{label}: {spread}": f"{with_spread(r[f'{s}_mean'], r[f'{s}_std'])} ({interval(r.get(f'{s}_ci95'))})"
+                **{label: f"{with_spread(r[f'{s}_mean'], r[f'{s}_std'])}\n({interval(r.get(f'{s}_ci95'))})"
                    for s, label in (("accuracy", "accuracy"), ("balanced_accuracy", "balanced accuracy"),
                                     ("macro_f1", "macro-F1"))},
-                "majority class: accuracy · balanced · macro-F1":
-                    f"{m['class']}: {percent(m['accuracy'])} · {percent(m['balanced_accuracy'])} · "
-                    f"{percent(m['macro_f1'])}"}
+                MAJORITY: f"{m['class']}:\n{percent(m['accuracy'])} · {percent(m['balanced_accuracy'])} · "
+                          f"{percent(m['macro_f1'])}"}
 
     def change_row(recogniser: str, trained: str, r: dict[str, Any]) -> dict[str, str]:
         d, ci = r["augmentation_delta"], r["augmentation_delta_ci95"]
         return {"recogniser": recogniser, "tested on": held, "trained on": trained, "gaits (clips)": "",
-                **{f"{label}: {spread}": f"{points(d[s])} ({interval(ci[s], as_points=True)})"
+                **{label: f"{points(d[s])}\n({interval(ci[s], as_points=True)})"
                    for s, label in (("accuracy", "accuracy"), ("balanced_accuracy", "balanced accuracy"),
                                     ("macro_f1", "macro-F1"))},
-                "majority class: accuracy · balanced · macro-F1": ""}
+                MAJORITY: ""}
 
     rows = []
     for kind, entry in recognition["by_recogniser"].items():
@@ -518,7 +520,7 @@ def write_html(path: Path, title: str, metrics: dict[str, Any], problems: list[d
 table{{border-collapse:collapse;font-size:13px;margin:0.5em 0}}td,th{{border:1px solid #ccc;padding:3px 8px;
 text-align:left;vertical-align:top}}th{{background:#f3f3f3}}img{{max-width:100%}}figure{{margin:1.5em 0}}
 figcaption{{font-size:13px;color:#333}}ul.verdicts{{font-size:17px;line-height:1.5;padding-left:1.2em}}
-li.verdict{{margin:0.3em 0}}p.controls{{font-size:15px}}table.recognition td:nth-child(n+4){{white-space:nowrap}}</style></head><body>
+li.verdict{{margin:0.3em 0}}p.controls{{font-size:15px}}table.recognition td{{white-space:pre-line}}</style></head><body>
 <h1>{html.escape(title)}</h1>
 <h2>Verdict</h2><ul class="verdicts">{verdicts}</ul>{controls}
 <h2>Overview</h2>{_table(overview)}

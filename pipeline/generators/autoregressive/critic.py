@@ -13,7 +13,8 @@ computed with gradients from travel-frame joint positions (``network.travel_fram
 standard deviation over frames of the 18 affective features (clipped and standardised with the generator's
 statistics) and of the root-relative speed of each of the 20 non-root joints (how much the limbs move, which
 the affective features, being per-frame posture, cannot see). It is trained on random crops of ``crop_frames``
-(the generated span) of the real windows and on their mirror images (``ops.mirror``), full-batch, seeded.
+(the generated span) of the labelled real train windows (with ``train.mirror``, also of their mirror images,
+``ops.mirror``), full-batch, seeded.
 """
 
 from __future__ import annotations

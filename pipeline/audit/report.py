@@ -520,7 +520,7 @@ def write_html(path: Path, title: str, metrics: dict[str, Any], problems: list[d
 table{{border-collapse:collapse;font-size:13px;margin:0.5em 0}}td,th{{border:1px solid #ccc;padding:3px 8px;
 text-align:left;vertical-align:top}}th{{background:#f3f3f3}}img{{max-width:100%}}figure{{margin:1.5em 0}}
 figcaption{{font-size:13px;color:#333}}ul.verdicts{{font-size:17px;line-height:1.5;padding-left:1.2em}}
-li.verdict{{margin:0.3em 0}}p.controls{{font-size:15px}}table.recognition td{{white-space:pre-line}}</style></head><body>
+li.verdict{{margin:0.3em 0}}p.controls{{font-size:15px}}table.recognition td:nth-child(n+5){{white-space:pre}}</style></head><body>
 <h1>{html.escape(title)}</h1>
 <h2>Verdict</h2><ul class="verdicts">{verdicts}</ul>{controls}
 <h2>Overview</h2>{_table(overview)}

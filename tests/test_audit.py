@@ -389,7 +389,8 @@ def test_the_recognition_table_breaks_each_figure_from_its_interval(page):
     table = re.search(r'<table class="recognition">(.*?)</table>', text, re.S).group(1)
     head = [html.unescape(h) for h in re.findall(r"<th>(.*?)</th>", table)]
     assert head[4:7] == ["accuracy", "balanced accuracy", "macro-F1"] and max(map(len, head[:6])) <= 20
-    rows = [[html.unescape(c) for c in re.findall(r"<td>(.*?)</td>", r, re.S)] for r in re.findall(r"<tr>(.*?)</tr>", table, re.S)]
+    rows = [[html.unescape(c) for c in re.findall(r"<td>(.*?)</td>", r, re.S)]
+            for r in re.findall(r"<tr>(.*?)</tr>", table, re.S)]
     figures = [c for r in rows if r for c in r[4:7]]
     assert len(figures) >= 3 * 4 and all(len(c.split("\n")) == 2 for c in figures)
     assert all(c.split("\n")[1].startswith("(CI ") and max(map(len, c.split("\n"))) <= 28 for c in figures)

@@ -8,6 +8,7 @@ and a top view of the root path. Left limbs are blue, right limbs red, the trunk
 from __future__ import annotations
 
 import re
+import textwrap
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -67,10 +68,14 @@ def _side_view(ax, p: np.ndarray, fwd: np.ndarray, motion: Motion, colour: str |
     ax.scatter(u, p[:, 1], s=6, color=colour or "#555555", zorder=3)
 
 
-def render_filmstrip(motions: Sequence[Motion], out: str | Path, frames: int = 8, dpi: int = 100) -> Path:
-    """One row per motion: ``frames`` evenly spaced side views plus a top view of the path."""
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
+def _row_label(title: str, width: int = 34) -> str:
+    """A row's title wrapped to the row's height (8 pt, 2.6 in): unwrapped, a long one ran into its neighbours'."""
+    return "\n".join(textwrap.fill(line, width, break_on_hyphens=False) for line in title.split("\n"))
+
+
+def filmstrip(motions: Sequence[Motion], frames: int = 8) -> plt.Figure:
+    """One row per motion: ``frames`` evenly spaced side views plus a top view of the path (the row's title at its
+    left)."""
     fig, axes = plt.subplots(len(motions), frames + 1, figsize=(1.6 * frames + 3.0, 2.6 * len(motions)),
                              squeeze=False, gridspec_kw={"width_ratios": [1] * frames + [1.8]})
     for row, motion in zip(axes, motions):
@@ -87,7 +92,7 @@ def render_filmstrip(motions: Sequence[Motion], out: str | Path, frames: int = 8
             ax.set_xticks([])
             ax.set_yticks([])
             ax.set_title(f"t={t}", fontsize=8)
-        row[0].set_ylabel(motion.title, fontsize=8)
+        row[0].set_ylabel(_row_label(motion.title), fontsize=8)
         ax = row[-1]
         r = motion.root
         ax.plot(pos[:, r, 0], pos[:, r, 2], color=TRUNK, lw=1.5)
@@ -100,7 +105,14 @@ def render_filmstrip(motions: Sequence[Motion], out: str | Path, frames: int = 8
         ax.set_title("top view (x, z)", fontsize=8)
         ax.tick_params(labelsize=6)
     fig.tight_layout()
-    save_figure(fig, out, dpi=dpi)
+    return fig
+
+
+def render_filmstrip(motions: Sequence[Motion], out: str | Path, frames: int = 8, dpi: int = 100) -> Path:
+    """``filmstrip`` saved to ``out``."""
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    save_figure(filmstrip(motions, frames), out, dpi=dpi)
     return out
 
 

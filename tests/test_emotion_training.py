@@ -151,6 +151,32 @@ def test_style_matching_sees_a_posture_past_the_real_range_that_the_critic_canno
         > float(style_match_loss(critic, pose, target))
 
 
+def test_style_matching_to_own_frames_keeps_each_gaits_deviation_from_its_emotion(labelled, critic, offsets,
+                                                                                  skeleton):
+    """Two real windows of one emotion differ. Pulled to the emotion's centroid, both cost something and are pulled
+    to one point; pulled to their own frames moved by the centroids' difference, each real window costs nothing
+    under its own emotion, and under another emotion the two targets stay as far apart as the windows are."""
+    arrays, _, held_rows = labelled
+    critic, _, _ = critic
+    held = GaitTensors.from_arrays(arrays, held_rows)
+    truth = held.condition[:, :4].argmax(-1)
+    k = int(torch.mode(truth).values)
+    rows = torch.nonzero(truth == k).flatten()[:2]
+    pose = travel_frame_positions(held.q[rows], offsets, skeleton.parents)[:, 18:]
+    own = held.condition[rows, :4]
+    with torch.no_grad():
+        assert float(style_match_loss(critic, pose, own)) > 0.05  # the centroid: every real window pays
+        assert float(style_match_loss(critic, pose, own, pose, own)) == 0.0
+        other = torch.nn.functional.one_hot(torch.full((2,), (k + 1) % 4), 4).float()
+        shift = (other - own) @ critic.centroids
+        stats = critic.standardised(pose, bounded=False)
+        # under the other emotion a gait is asked to move by the centroids' difference only ...
+        assert float(style_match_loss(critic, pose, other, pose, own)) == pytest.approx(float(
+            torch.nn.functional.huber_loss(stats, stats + shift, delta=1.0)))
+        # ... and the two targets differ as the windows do: one window does not meet the other's
+        assert float(style_match_loss(critic, pose[:1], other[:1], pose[1:], own[1:])) > 0.05
+
+
 def test_mismatched_conditions_change_only_labelled_gaits_and_stay_on_the_simplex(labelled):
     arrays, fit_rows, _ = labelled
     g = GaitTensors.from_arrays(arrays, fit_rows[:40])

@@ -137,13 +137,23 @@ def style_loss(logits: torch.Tensor, target: torch.Tensor, weight: torch.Tensor 
     return per.mean() if reduction == "mean" else per
 
 
-def style_match_loss(critic: StyleCritic, pose: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+def style_match_loss(critic: StyleCritic, pose: torch.Tensor, target: torch.Tensor,
+                     own_pose: torch.Tensor | None = None, own_emotion: torch.Tensor | None = None) -> torch.Tensor:
     """Huber distance (per statistic, mean over them and over gaits) of generated gaits' standardised statistics
-    (pose (B, T, 21, 3)) from the real statistics of their target emotions (B, 4): target @ centroids. Unlike
-    the critic's cross-entropy, which a gait satisfies by going far along the few directions a linear reader
-    uses, it asks for the real emotion's posture and limb speeds in every statistic. It reads the features
-    unclamped: clamped, a posture past the real range (a head tilted 17 degrees towards one shoulder under "angry")
-    would cost nothing here and gain nothing from the critic, so nothing would pull it back."""
+    (pose (B, T, 21, 3)) from the real statistics of their target emotions (B, 4). Unlike the critic's
+    cross-entropy, which a gait satisfies by going far along the few directions a linear reader uses, it asks for
+    the real emotion's posture and limb speeds in every statistic. It reads the features unclamped: clamped, a
+    posture past the real range (a head tilted 17 degrees towards one shoulder under "angry") would cost nothing
+    here and gain nothing from the critic, so nothing would pull it back.
+
+    Without ``own_pose`` the wanted statistics are the target's centroid (target @ centroids): every gait of an
+    emotion is pulled towards one point. With the real frames of the gait's own window (``own_pose``, the ground
+    truth, of ``own_emotion`` (B, 4); ``train.style_match_own``) they are those frames' statistics moved by the
+    difference of the two emotions' centroids: a gait keeps its own deviation from its emotion's centroid (its
+    performer's walk), and under its own emotion the target is simply its own frames. Tried and not kept: the
+    published gaits' spread barely moved (benchmarks/diversity.py; README)."""
     wanted = target @ critic.centroids
+    if own_pose is not None:
+        wanted = critic.standardised(own_pose, bounded=False) + (target - own_emotion) @ critic.centroids
     return torch.nn.functional.huber_loss(critic.standardised(pose, bounded=False), wanted, reduction="none",
                                           delta=1.0).mean()

@@ -255,7 +255,7 @@ class Losses:
 def generator_losses(pred: dict[str, torch.Tensor], target: dict[str, torch.Tensor], model: EmotiveGaitNet,
                      offsets: torch.Tensor, parents: Sequence[int], weights: LossWeights = LossWeights(),
                      content_weight: torch.Tensor | None = None, critic: nn.Module | None = None,
-                     style_target: torch.Tensor | None = None) -> Losses:
+                     style_target: torch.Tensor | None = None, own_style: torch.Tensor | None = None) -> Losses:
     """Paper Eqs. 8-13 over predicted frames, plus the style term. pred: q, q_raw (B, T, 21, 4), h, s, delta
     (B, T); target: q (B, T, 21, 4), affective (B, T, 18), h, s, delta (B, T) and, for the foot term, feet
     (B, T, 4, 3) world heel/toe positions, direction (B, T), start (B, 3) root position before the first predicted
@@ -263,7 +263,10 @@ def generator_losses(pred: dict[str, torch.Tensor], target: dict[str, torch.Tens
     gaits weighted by ``content_weight`` (B,) (a mismatched pair's ground truth shows another emotion than its
     condition: it only keeps the walk plausible). Root features are compared in standardised units (s is
     ~0.04 m/frame, δ ~0.3 rad). The style term (with ``critic`` and ``style_target`` (B, 4), NaN rows for no
-    condition) is the critic's cross-entropy against the condition, over the conditioned gaits."""
+    condition) is the critic's cross-entropy against the condition, over the conditioned gaits; style matching
+    (``weights.style_match``) pulls their statistics towards the condition's centroid or, with ``own_style`` (B, 4),
+    the emotion each gait's ground truth shows, towards its own ground truth moved by the centroids' difference
+    (``critic.style_match_loss``)."""
     weight = torch.ones(pred["q"].shape[0], device=pred["q"].device) if content_weight is None else content_weight
 
     def over_gaits(per_frame: torch.Tensor) -> torch.Tensor:
@@ -294,7 +297,8 @@ def generator_losses(pred: dict[str, torch.Tensor], target: dict[str, torch.Tens
             style = predicted_pose.new_zeros(())
         total = total + weights.style * style
         if weights.style_match > 0.0:
-            match = (style_match_loss(critic, predicted_pose[conditioned], style_target[conditioned])
+            own = (None, None) if own_style is None else (target_pose[conditioned], own_style[conditioned])
+            match = (style_match_loss(critic, predicted_pose[conditioned], style_target[conditioned], *own)
                      if conditioned.any() else predicted_pose.new_zeros(()))
             total = total + weights.style_match * match
     return Losses(motion=motion, pose=pose, affective=affective, root=root, foot=foot, total=total, style=style,

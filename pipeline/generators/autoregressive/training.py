@@ -65,6 +65,7 @@ class TrainConfig:
     mismatch_content: float = 0.25  # weight of a mismatched pair's ground-truth (content) terms
     mirror: bool = False  # train also on the mirror images of the train gaits (ops.mirror; label-preserving)
     style_sharpness: float = 1.0  # the style term asks for m^p / sum(m^p) (p > 1: a mixture reads as its dominant)
+    style_match_own: bool = False  # style matching keeps a gait's own deviation from its emotion (critic.py)
 
 
 @dataclass
@@ -303,7 +304,8 @@ def train_generator(train: GaitTensors, val: GaitTensors, offsets: torch.Tensor,
             pred = rollout(model, batch, offsets, parents, cfg.prefix, tf, draws,
                            condition if bool(mismatched.any()) else None)
             losses = generator_losses(pred, targets(batch, cfg.prefix), model, offsets, parents, weights,
-                                      content, critic, style_targets(condition, cfg.style_sharpness))
+                                      content, critic, style_targets(condition, cfg.style_sharpness),
+                                      style_targets(batch.condition) if cfg.style_match_own else None)
             optimiser.zero_grad(set_to_none=True)
             losses.total.backward()
             torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.grad_clip)
@@ -313,7 +315,8 @@ def train_generator(train: GaitTensors, val: GaitTensors, offsets: torch.Tensor,
             batches += 1
         lr = optimiser.param_groups[0]["lr"]
         schedule.step()
-        val_losses = (evaluate_losses(model, val_d, offsets, parents, cfg.prefix, weights, critic=critic)
+        val_losses = (evaluate_losses(model, val_d, offsets, parents, cfg.prefix, weights, critic=critic,
+                                      style_match_own=cfg.style_match_own)
                       if (epoch + 1) % cfg.validate_every == 0 or epoch + 1 == cfg.epochs else {})
         row = {"epoch": epoch + 1, "teacher_forcing": round(tf, 6), "learning_rate": lr,
                **{f"train_{k}": v / max(batches, 1) for k, v in sums.items()},
@@ -329,16 +332,18 @@ def train_generator(train: GaitTensors, val: GaitTensors, offsets: torch.Tensor,
 
 @torch.no_grad()
 def evaluate_losses(model: EmotiveGaitNet, gaits: GaitTensors, offsets: torch.Tensor, parents: Sequence[int],
-                    prefix: int, weights: LossWeights, batch_size: int = 256, critic: StyleCritic | None = None
-                    ) -> dict[str, float]:
-    """Loss terms of a free-running rollout under the gaits' own conditions, averaged over gaits."""
+                    prefix: int, weights: LossWeights, batch_size: int = 256, critic: StyleCritic | None = None,
+                    style_match_own: bool = False) -> dict[str, float]:
+    """Loss terms of a free-running rollout under the gaits' own conditions, averaged over gaits (style matching
+    as in training: ``style_match_own``)."""
     model.eval()
     totals: dict[str, float] = {}
     for start in range(0, len(gaits), batch_size):
         batch = gaits.select(slice(start, start + batch_size))
         pred = rollout(model, batch, offsets, parents, prefix)
         losses = generator_losses(pred, targets(batch, prefix), model, offsets, parents, weights, critic=critic,
-                                  style_target=style_targets(batch.condition))
+                                  style_target=style_targets(batch.condition),
+                                  own_style=style_targets(batch.condition) if style_match_own else None)
         for k, v in losses.as_floats().items():
             totals[k] = totals.get(k, 0.0) + v * len(batch)
     return {k: v / max(len(gaits), 1) for k, v in totals.items()}

@@ -26,19 +26,10 @@ sys.path.insert(0, str(REPO))
 
 import numpy as np  # noqa: E402
 
-from pipeline.audit.metrics import (  # noqa: E402
-    AuditConfig,
-    augmentation_controls,
-    generator_families,
-    labelled_gaits,
-    load_for_audit,
-    steady_label,
-)
+from benchmarks.published import published_gaits  # noqa: E402
+from pipeline.audit.metrics import augmentation_controls  # noqa: E402
 from pipeline.io.files import write_json  # noqa: E402
-from pipeline.recognition import RecognitionInputs  # noqa: E402
-from stages.common import load_params  # noqa: E402
 
-PUBLISHED = REPO / "data" / "published" / "synthesized_emotive_gaits"
 OUT = REPO / "benchmarks" / "out" / "asymmetry.json"
 # (left, right) affective feature indices (DESIGN.md §5)
 LATERAL_PAIRS = {"elbow": (7, 8), "head_neck_shoulder": (9, 10), "head_root_knee": (11, 12), "knee": (15, 16)}
@@ -50,18 +41,13 @@ def asymmetry(affective: np.ndarray) -> np.ndarray:
 
 
 def main() -> dict:
-    cfg = AuditConfig.from_dict(load_params()["audit"])
-    frame, meta = load_for_audit(PUBLISHED)
-    names = meta["emotion_order"]
-    inputs = RecognitionInputs.from_frame(frame)
-    label, usable, train, held = labelled_gaits(frame, names, inputs, cfg.test_splits)
-    values = asymmetry(inputs.affective)
+    gaits = published_gaits()
+    names, label, train, held = gaits.names, gaits.label, gaits.train, gaits.held
+    values = asymmetry(gaits.inputs.affective)
     groups = {"real_train": (values[train], label[train]), "real_held_out": (values[held], label[held])}
-    mirrored = augmentation_controls(inputs.select(train), ["mirrored"])["mirrored"]
+    mirrored = augmentation_controls(gaits.inputs.select(train), ["mirrored"])["mirrored"]
     groups["real_train_mirrored"] = (asymmetry(mirrored.affective), label[train])
-    steady = steady_label(frame)
-    for family, mask in generator_families(frame).items():
-        rows = mask & usable & steady
+    for family, rows in gaits.families.items():
         groups[family] = (values[rows], label[rows])
 
     reference, reference_label = groups["real_train"]

@@ -28,34 +28,21 @@ sys.path.insert(0, str(REPO))
 
 import numpy as np  # noqa: E402
 
-from pipeline.audit.metrics import (  # noqa: E402
-    AuditConfig,
-    gait_summaries,
-    generator_families,
-    labelled_gaits,
-    load_for_audit,
-    steady_label,
-)
+from benchmarks.published import published_gaits  # noqa: E402
+from pipeline.audit.metrics import gait_summaries  # noqa: E402
 from pipeline.io.files import write_json  # noqa: E402
-from pipeline.recognition import RecognitionInputs  # noqa: E402
 from stages.common import load_params  # noqa: E402
 
-PUBLISHED = REPO / "data" / "published" / "synthesized_emotive_gaits"
 OUT = REPO / "benchmarks" / "out" / "diversity.json"
 
 
 def main() -> dict:
-    cfg = AuditConfig.from_dict(load_params()["audit"])
-    frame, meta = load_for_audit(PUBLISHED)
-    names = meta["emotion_order"]
-    label, usable, train, held = labelled_gaits(frame, names, RecognitionInputs.from_frame(frame), cfg.test_splits)
+    gaits = published_gaits()
+    frame, names, label, train = gaits.frame, gaits.names, gaits.label, gaits.train
     summaries = gait_summaries(frame)
     z = (summaries - summaries[train].mean(0)) / summaries[train].std(0).clip(1e-9)
     walks = (frame["content"] == load_params()["synthesize"]["seed_content"]).to_numpy()
-    groups = {"real_train": train, "real_train_walks": train & walks, "real_held_out": held}
-    steady = steady_label(frame)
-    for family, mask in generator_families(frame).items():
-        groups[family] = mask & usable & steady
+    groups = {"real_train": train, "real_train_walks": train & walks, "real_held_out": gaits.held, **gaits.families}
     out: dict = {"unit": "real train standard deviations of the 46 feature summaries", "groups": {}}
     for group, mask in groups.items():
         per_emotion = {}

@@ -152,8 +152,9 @@ def style_match_loss(critic: StyleCritic, pose: torch.Tensor, target: torch.Tens
     difference of the two emotions' centroids: a gait keeps its own deviation from its emotion's centroid (its
     performer's walk), and under its own emotion the target is simply its own frames. Tried and not kept: the
     published gaits' spread barely moved (benchmarks/diversity.py; README)."""
-    wanted = target @ critic.centroids
-    if own_pose is not None:
+    if own_pose is None:
+        wanted = target @ critic.centroids
+    else:
         wanted = critic.standardised(own_pose, bounded=False) + (target - own_emotion) @ critic.centroids
     return torch.nn.functional.huber_loss(critic.standardised(pose, bounded=False), wanted, reduction="none",
                                           delta=1.0).mean()

@@ -15,7 +15,7 @@ the mirror images, i.e. once the cue mirroring removes is gone before the synthe
 Per recogniser, the mean over the audit's seeds; changes in macro-F1 points, also on the held-out gaits of the
 contents the generators make (forward walks) and on the others. Printed as JSON and written to
 benchmarks/out/augmentation_controls.json. Run from the repository root after ``dvc repro``:
-``python benchmarks/augmentation_controls.py`` (about 4 min on 2 idle cores, most of it the temporal CNN).
+``python benchmarks/augmentation_controls.py`` (about 1 min on 2 idle cores).
 """
 
 from __future__ import annotations
@@ -35,30 +35,25 @@ from pipeline.audit.metrics import (  # noqa: E402
     AuditConfig,
     augmentation_controls,
     augmentation_draw,
-    generator_families,
     held_out_by_content,
-    labelled_gaits,
-    load_for_audit,
-    steady_label,
 )
 from pipeline.io.files import write_json  # noqa: E402
 from pipeline.recognition import RECOGNISERS, RecognitionInputs, confusion, fit_recogniser, scores  # noqa: E402
 from stages.common import load_params  # noqa: E402
 
-PUBLISHED = REPO / "data" / "published" / "synthesized_emotive_gaits"
+from published import published_gaits  # noqa: E402
+
 OUT = REPO / "benchmarks" / "out" / "augmentation_controls.json"
 
 
 def main() -> dict:
     torch.set_num_threads(2)
     cfg = AuditConfig.from_dict(load_params()["audit"])
-    frame, meta = load_for_audit(PUBLISHED)
-    names = meta["emotion_order"]
-    inputs = RecognitionInputs.from_frame(frame)
-    label, usable, train, test = labelled_gaits(frame, names, inputs, cfg.test_splits)
-    views = {"all": np.ones(int(test.sum()), bool), **held_out_by_content(frame, test)}
-    steady = steady_label(frame)
-    families = generator_families(frame)
+    published = published_gaits()
+    names, inputs, label, train, test = (published.names, published.inputs, published.label, published.train,
+                                         published.held)
+    views = {"all": np.ones(int(test.sum()), bool), **held_out_by_content(published.frame, test)}
+    families = published.families
     real_train, held, y = inputs.select(train), inputs.select(test), label[test]
     mirrored = augmentation_controls(real_train, ["mirrored"])["mirrored"]
     bases = {"real_only": (real_train, label[train]),
@@ -80,7 +75,7 @@ def main() -> dict:
                 before = macro_f1(fit_recogniser(kind, x, labels, cfg.recognisers, seed).predict(held))
                 figures.setdefault(base, []).append(before)
                 for family, mask in families.items():
-                    drawn = augmentation_draw(np.flatnonzero(mask & usable & steady), int(train.sum()), seed)
+                    drawn = augmentation_draw(np.flatnonzero(mask), int(train.sum()), seed)
                     both = RecognitionInputs.concatenate([x, inputs.select(drawn)])
                     after = macro_f1(fit_recogniser(kind, both, np.concatenate([labels, label[drawn]]),
                                                     cfg.recognisers, seed).predict(held))

@@ -10,7 +10,8 @@ straight line under its own one-hot emotion (60 frames after its 18-frame prefix
 - ``stance_foot``: the stance-foot placement alone (no smoothing, path fit or locking).
 Reported per content: the median over gaits of the median |facing - direction of travel| (degrees; the direction
 of travel as the generator reads it, ``geometry.path_direction``) and the median net speed (m/s), of the real
-windows (frames 18-59) and of each placement.
+windows (frames 18-59) and of each placement; for the placements also how far the direction of travel points off
+the straight path (laid along the seed's own direction of travel) over the first and the last ten frames.
 
 Printed as JSON and written to benchmarks/out/seed_contents.json.
 Run from the repository root after ``dvc repro``:  ``python benchmarks/seed_contents.py``.
@@ -34,7 +35,7 @@ from pipeline.evaluation.autoregressive import straight_path  # noqa: E402
 from pipeline.generators.autoregressive.rollout import Seeds, generate, place_paths  # noqa: E402
 from pipeline.generators.autoregressive.training import DIRECTION_FRAMES  # noqa: E402
 from pipeline.io.files import write_json  # noqa: E402
-from pipeline.ops.geometry import path_direction, wrap_angle  # noqa: E402
+from pipeline.ops.geometry import path_direction, travel_direction, wrap_angle  # noqa: E402
 from stages.common import load_params  # noqa: E402
 from stages.configs import placement_config  # noqa: E402
 
@@ -44,13 +45,26 @@ OUT = REPO / "benchmarks" / "out" / "seed_contents.json"
 FRAMES = 60
 
 
-def _facing_and_speed(positions: torch.Tensor, heading: torch.Tensor, fps: float) -> dict:
-    """positions (N, T, 21, 3), heading (N, T) -> median |facing - travel| (deg) and median net speed (m/s)."""
+def _degrees(angle: torch.Tensor) -> float:
+    """Median over gaits of the median over frames of |angle| (N, T), in degrees."""
+    return round(float(torch.rad2deg(angle.abs().median(dim=1).values).median()), 1)
+
+
+def _facing_and_speed(positions: torch.Tensor, heading: torch.Tensor, fps: float,
+                      path: torch.Tensor | None = None) -> dict:
+    """positions (N, T, 21, 3), heading (N, T) -> median |facing - travel| (deg) and median net speed (m/s); with
+    the placed straight paths (N, K, 2), also how far the direction of travel points off the path, over the first
+    and the last ten frames."""
     root = positions[:, :, 0].double()
-    offset = wrap_angle(heading.double() - path_direction(root, heading.double(), DIRECTION_FRAMES)).abs()
+    travel = path_direction(root, heading.double(), DIRECTION_FRAMES)
     net = torch.linalg.vector_norm(root[:, -1, [0, 2]] - root[:, 0, [0, 2]], dim=-1) * fps / (root.shape[1] - 1)
-    return {"facing_vs_travel_deg": round(float(torch.rad2deg(offset.median(dim=1).values).median()), 1),
-            "net_speed_m_s": round(float(net.median()), 3)}
+    out = {"facing_vs_travel_deg": _degrees(wrap_angle(heading.double() - travel)),
+           "net_speed_m_s": round(float(net.median()), 3)}
+    if path is not None:
+        along = travel_direction(path.double(), 1)[:, None]
+        off = wrap_angle(travel - along)
+        out["travel_vs_path_deg_first_last_10_frames"] = [_degrees(off[:, :10]), _degrees(off[:, -10:])]
+    return out
 
 
 def main() -> dict:
@@ -79,7 +93,7 @@ def main() -> dict:
         for placement_name, placement in placements.items():
             with torch.no_grad():
                 g = generate(model, seeds, paths, condition, offsets, skeleton.parents, placement)
-            entry[placement_name] = _facing_and_speed(g.positions, g.heading, fps)
+            entry[placement_name] = _facing_and_speed(g.positions, g.heading, fps, paths)
         out["by_content"][name] = entry
         print(f"{name}: {json.dumps(entry)}", flush=True)
     write_json(out, OUT)

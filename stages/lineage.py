@@ -9,6 +9,7 @@ deps hold now, after only the stages upstream of it (the lock entries of the oth
 from __future__ import annotations
 
 import hashlib
+import re
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -40,19 +41,31 @@ def _upstream(stages: Mapping[str, Any], deps: list[str]) -> dict[str, Any]:
     return {name: stage for name, stage in stages.items() if name in kept}
 
 
+def _interpolated(path: str, params: Mapping[str, Any]) -> str:
+    """A dep written as ``${dotted.param}`` in dvc.yaml -> that param's value (params.yaml), as DVC resolves it."""
+    if not (match := re.fullmatch(r"\$\{([\w.]+)\}", path)):
+        return path
+    value: Any = params
+    for key in match.group(1).split("."):
+        value = value[key]
+    return str(value)
+
+
 def _running_stage(repo: Path, spec: Mapping[str, Any], stages: Mapping[str, Any]) -> tuple[dict, dict]:
     """The running stage's record from its dvc.yaml spec (its lock entry, if any, is its previous run's) and the
     locked stages upstream of it. A file dep gets the md5 of what it holds now; a directory the record of the
-    upstream stage that outputs it."""
-    deps = _paths(spec.get("deps", []))
+    upstream stage that outputs it, else of one that reads it."""
+    params = yaml.safe_load((repo / "params.yaml").read_text(encoding="utf-8"))
+    deps = [_interpolated(p, params) for p in _paths(spec.get("deps", []))]
     upstream = _upstream(stages, deps)
-    outs = {r["path"]: r for st in upstream.values() for r in st.get("outs", [])}
+    known = {r["path"]: r for st in upstream.values() for r in st.get("deps", [])}
+    known.update({r["path"]: r for st in upstream.values() for r in st.get("outs", [])})
 
     def record(path: str) -> dict[str, Any]:
         file = repo / path
         if file.is_file():
             return {"path": path, "md5": hashlib.md5(file.read_bytes()).hexdigest()}  # DVC's file digest
-        return {k: v for k, v in outs.get(path, {"path": path}).items() if k in RECORD_KEYS}
+        return {k: v for k, v in known.get(path, {"path": path}).items() if k in RECORD_KEYS}
 
     return ({"cmd": spec["cmd"], "deps": [record(p) for p in deps],
              "outs": [{"path": p} for p in _paths(spec.get("outs", []))]}, upstream)

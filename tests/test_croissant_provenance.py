@@ -27,7 +27,7 @@ from pipeline.publish.croissant import (CROISSANT_NAME, croissant_metadata, croi
 from pipeline.dataset import read_table, verify, write_hdf5_atomic, write_sha256sums
 from pipeline.io.files import write_parquet
 from pipeline.io.gait_table import array_column, column_array
-from pipeline.publish.provenance import PROVENANCE_NAME, prov_document, write_provenance
+from pipeline.publish.provenance import PROVENANCE_NAME, holds, prov_document, write_provenance
 from stages.common import REPO
 from stages.lineage import stage_graph
 
@@ -379,6 +379,28 @@ def test_prov_json_is_well_formed_serialisable_and_deterministic(published):
     assert {q.split(":", 1)[0] for q in qualified} <= set(doc["prefix"]) | {"prov"}
     path = write_provenance(directory.parent / "provenance-copy.json", doc)
     assert path.read_text(encoding="utf-8") == text + "\n"
+
+
+def test_publish_depends_on_every_input_and_param_its_provenance_records():
+    """provenance.json holds the lock entries of the stages upstream of publish, their code md5s included. Each path
+    and param they record must be a dep or param of publish itself: else a code change upstream whose outputs
+    come out byte-identical (a tidy-up) does not rerun publish, the published provenance keeps naming code that is
+    gone, and a clean clone's `dvc repro` rewrites dvc.lock."""
+    graph = stage_graph(REPO, LOCK, running="publish")
+    own = graph["stages"].pop("publish")
+    upstream = graph["stages"]
+    assert {"ingest", "annotate", "split", "train", "synthesize", "synthesize_motion_graph"} <= set(upstream)
+    deps = [r["path"] for r in own["deps"]]
+    recorded = {r["path"] for stage in upstream.values() for key in ("deps", "outs") for r in stage[key] if "md5" in r}
+    assert "pipeline/generators/autoregressive/critic.py" in recorded
+    assert sorted(p for p in recorded if not any(holds(d, p) for d in deps)) == []
+    params = yaml.safe_load((REPO / "dvc.yaml").read_text())["stages"]["publish"]["params"]
+    named = {k for stage in upstream.values() for file in stage.get("params", {}).values() for k in file}
+    assert sorted(k for k in named if not any(k == p or k.startswith(p + ".") for p in params)) == []
+    # the dvc.yaml dep ${data.mocap_root} is recorded as the path it resolves to, with the digest ingest locked
+    mocap = yaml.safe_load((REPO / "params.yaml").read_text())["data"]["mocap_root"]
+    ingest = {r["path"]: r for r in upstream["ingest"]["deps"]}
+    assert next(r for r in own["deps"] if r["path"] == mocap)["md5"] == ingest[mocap]["md5"]
 
 
 def _with_publish_stage(tmp_path: Path, outs: list[dict]) -> Path:

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import json
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
@@ -39,7 +38,7 @@ from pipeline.ops.geometry import path_direction, travel_direction, wrap_angle  
 from stages.common import load_params  # noqa: E402
 from stages.configs import placement_config  # noqa: E402
 
-from generator_data import generator, split_gaits  # noqa: E402
+from generator_data import generator, legs_placement, split_gaits  # noqa: E402
 
 OUT = REPO / "benchmarks" / "out" / "seed_contents.json"
 FRAMES = 60
@@ -73,15 +72,12 @@ def main() -> dict:
     prefix = int(params["train"]["prefix"])
     arrays, split, content, dominant = split_gaits()
     model, sha, skeleton, offsets = generator()
-    published = placement_config(params)
-    placements = {"published": published,
-                  "stance_foot": replace(published, root_smoothing_s=0.0, path_fit_s=0.0, foot_lock=False)}
-    fps = published.fps
+    placements = {"published": placement_config(params), "stance_foot": legs_placement(params)}
+    fps = placements["published"].fps
     out = {"checkpoint_sha256": sha, "frames": FRAMES, "by_content": {}}
-    for name in sorted(set(content[(split == "train") & (dominant >= 0)])):
-        rows = np.flatnonzero((split == "train") & (content == name) & (dominant >= 0))
-        if not name.startswith("walk"):
-            continue
+    labelled_train = (split == "train") & (dominant >= 0)
+    for name in sorted(c for c in set(content[labelled_train]) if c.startswith("walk")):
+        rows = np.flatnonzero(labelled_train & (content == name))
         seeds = Seeds.from_arrays(arrays, rows, prefix)
         paths = place_paths(straight_path(), seeds)
         condition = torch.nn.functional.one_hot(torch.from_numpy(dominant[rows]), len(EMOTIONS)).float()

@@ -35,9 +35,8 @@ from pipeline.evaluation.autoregressive import straight_path  # noqa: E402
 from pipeline.generators.autoregressive.rollout import Seeds, generate, place_paths  # noqa: E402
 from pipeline.io.files import write_json  # noqa: E402
 from stages.common import load_params  # noqa: E402
-from stages.configs import placement_config  # noqa: E402
 
-from generator_data import generator, split_gaits  # noqa: E402
+from generator_data import generator, legs_placement, split_gaits  # noqa: E402
 
 OUT = REPO / "benchmarks" / "out" / "stride.json"
 FRAMES = 60
@@ -57,7 +56,7 @@ def main() -> dict:
     prefix = int(params["train"]["prefix"])
     arrays, split, content, dominant = split_gaits()
     model, sha, skeleton, offsets = generator()
-    plain = replace(placement_config(params), root_smoothing_s=0.0, path_fit_s=0.0, foot_lock=False)
+    plain = legs_placement(params)
     placements = {"stance_foot": replace(plain, root_advance="stance_foot"),
                   "lowest_point": replace(plain, root_advance="stance_foot", stance_fraction=1.0),
                   "predicted_speed": replace(plain, root_advance="predicted_speed")}

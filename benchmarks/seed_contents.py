@@ -34,7 +34,7 @@ from pipeline.evaluation.autoregressive import straight_path  # noqa: E402
 from pipeline.generators.autoregressive.rollout import Seeds, generate, place_paths  # noqa: E402
 from pipeline.generators.autoregressive.training import DIRECTION_FRAMES  # noqa: E402
 from pipeline.io.files import write_json  # noqa: E402
-from pipeline.ops.geometry import path_direction, travel_direction, wrap_angle  # noqa: E402
+from pipeline.ops.geometry import facing_off_travel, path_direction, travel_direction, wrap_angle  # noqa: E402
 from stages.common import load_params  # noqa: E402
 from stages.configs import placement_config  # noqa: E402
 
@@ -57,7 +57,7 @@ def _facing_and_speed(positions: torch.Tensor, heading: torch.Tensor, fps: float
     root = positions[:, :, 0].double()
     travel = path_direction(root, heading.double(), DIRECTION_FRAMES)
     net = torch.linalg.vector_norm(root[:, -1, [0, 2]] - root[:, 0, [0, 2]], dim=-1) * fps / (root.shape[1] - 1)
-    out = {"facing_vs_travel_deg": _degrees(wrap_angle(heading.double() - travel)),
+    out = {"facing_vs_travel_deg": _degrees(facing_off_travel(root, heading.double(), DIRECTION_FRAMES)),
            "net_speed_m_s": round(float(net.median()), 3)}
     if path is not None:
         along = travel_direction(path.double(), 1)[:, None]

@@ -6,7 +6,8 @@ along +X (the body's left when it faces +Z), i.e. atan2(x, z).
 
 * headings and directions of travel: ``heading_angle`` (of a root rotation), ``direction_of`` (of a displacement),
   ``travel_direction`` (from a path's start to a point some frames on), ``path_direction`` (per frame: the mean
-  step over about a stride), ``unit_direction`` (the unit vector of a direction);
+  step over about a stride), ``facing_off_travel`` (the heading against that direction: about π for a backward
+  walk), ``unit_direction`` (the unit vector of a direction);
 * local frames: ``to_local_frame`` (an origin moved to (0, 0), a direction turned onto +z) and its inverse
   ``from_local_frame``;
 * polylines: ``segment_lengths``, ``arc_lengths``, ``point_at_arc`` and ``points_at_arcs`` (points at given arc
@@ -83,6 +84,12 @@ def path_direction(root_positions: torch.Tensor, heading: torch.Tensor, frames: 
     mean_x, mean_z = moving_average(step[..., 0], frames), moving_average(step[..., 1], frames)
     moving = torch.sqrt(mean_x ** 2 + mean_z ** 2) > min_step
     return torch.where(moving, direction_of(mean_x, mean_z), heading)
+
+
+def facing_off_travel(root_positions: torch.Tensor, heading: torch.Tensor, frames: int) -> torch.Tensor:
+    """Body heading minus the direction of travel (``path_direction`` over ``frames``), wrapped to [-π, π), per frame
+    (..., T): near 0 walking forwards, ±π/2 side-stepping, near ±π walking backwards."""
+    return wrap_angle(heading - path_direction(root_positions, heading, frames))
 
 
 # ---------------------------------------------------------------------------------------------------- local frames

@@ -152,6 +152,12 @@ def qangle(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     return 2.0 * torch.acos(dot)
 
 
+def qspread(q: torch.Tensor) -> torch.Tensor:
+    """The largest angle (radians) between any two of the T rotations (..., T, 4) -> (...): how far a joint turns
+    within a sequence, whichever frames it turns between (q and -q are one rotation)."""
+    return qangle(q[..., :, None, :], q[..., None, :, :]).amax((-1, -2))
+
+
 def quat_to_euler(q: torch.Tensor, order: str, locked_cos: float = 1e-9) -> torch.Tensor:
     """Intrinsic Euler angles (..., 3), radians, about ``order``'s axes: the inverse of ``euler_to_quat``.
 

@@ -326,13 +326,20 @@ def foot_skating(synthetic: np.ndarray, real: np.ndarray, fps: float, contacts: 
     return out
 
 
-def walking_figures(root_paths: np.ndarray, emotions: np.ndarray, fps: float) -> dict[str, dict[str, float]]:
-    """Per dominant emotion: gaits, median net speed (start-to-end ground distance / duration) and median path
-    speed (ground distance walked / duration), m/s. A body that steps on the spot or circles has a path speed
-    but little net speed. root_paths: (N, T, 2) ground (x, z); emotions: (N, 4) labels (no NaN rows)."""
+def net_and_path_speed(root_paths: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """(N,) net speed (start-to-end ground distance / duration) and (N,) path speed (ground distance walked /
+    duration), m/s, of root paths (N, T, 2) ground (x, z). A body that steps on the spot or circles has a path speed
+    but little net speed."""
     seconds = (root_paths.shape[1] - 1) / fps
     net = np.linalg.norm(root_paths[:, -1] - root_paths[:, 0], axis=-1) / seconds
     walked = np.linalg.norm(np.diff(root_paths, axis=1), axis=-1).sum(1) / seconds
+    return net, walked
+
+
+def walking_figures(root_paths: np.ndarray, emotions: np.ndarray, fps: float) -> dict[str, dict[str, float]]:
+    """Per dominant emotion: gaits, median net speed and median path speed (``net_and_path_speed``), m/s.
+    root_paths: (N, T, 2) ground (x, z); emotions: (N, 4) labels (no NaN rows)."""
+    net, walked = net_and_path_speed(root_paths, fps)
     dominant = np.argmax(emotions, axis=-1)
     return {name: {"gaits": int((dominant == k).sum()),
                    "net_speed_m_s": round(float(np.median(net[dominant == k])), 3),

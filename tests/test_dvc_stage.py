@@ -214,6 +214,18 @@ def check_published(published: Path, work: Path) -> None:
     # seeds: labelled train-split walks (the held-out clips stay unseen by the generator)
     seeds = real.set_index("gait_id").loc[sorted(set(synthetic["seed_gait_id"]))]
     assert (seeds["split"] == "train").all() and seeds["label_method"].notna().all()
+    # what the card and the Croissant record say of the seeds and the contents is what the files hold
+    card = " ".join((published / "README.md").read_text().split())
+    assert f"frames of a labelled real train-split gait ({', '.join(sorted(set(seeds['content'])))})" in card
+    collection = " ".join(json.loads((published / "croissant.json").read_text())["rai:dataCollection"].split())
+    assert "the seeded ones (autoregressive_affect) continue the first frames of labelled real train-split" in collection
+    labelled = real[real["label_method"].notna()]
+    for content, n in labelled["content"].value_counts().items():
+        assert f"| real labelled, {content} | {n} |" in card, content
+    for name in families:
+        assert f"| `{name}` | 5000 |" in card, name
+    publish_report = json.loads((work / "reports/publish.json").read_text())["limitations"]
+    assert set(publish_report["trunk_turn_deg"]) == {"real_train_walks", *families}
     table = pds.dataset(sorted(published.glob("gaits-*.parquet")), format="parquet").to_table()
     assert table.num_rows == len(frame)
     positions = table["positions"].combine_chunks().flatten().to_numpy().reshape(-1, 60, 21, 3)

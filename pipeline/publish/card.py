@@ -1,7 +1,7 @@
 """The dataset card (README.md of a published directory): a Hugging Face YAML header (one config per part: each
 generator family's synthetic gaits and the real gaits, the named dataset's family the default) and datasheet
 sections (Gebru et al. 2021) in the template ``templates/card.md``, filled from the composition counts, the schema
-metadata, the sources' licences and the plan."""
+metadata, the sources' licences, the plan and the known limitations measured on the published gaits."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ from typing import Any
 
 import yaml
 
+from pipeline.publish.limitations import card_section, seed_text
 from pipeline.publish.table import COLUMN_DESCRIPTIONS
 
 TEMPLATE = Path(__file__).with_name("templates") / "card.md"
@@ -32,9 +33,10 @@ def hf_header(parts: Mapping[str, list[str]], named_family: str, name: str) -> s
 
 def dataset_card(counts: dict[str, Any], meta: dict[str, Any], licences: dict[str, str], plan: dict[str, Any],
                  lineage_source: str, parts: Mapping[str, list[str]], named_family: str,
-                 name: str = "Synthesized Emotive Gaits") -> str:
+                 limitations: dict[str, Any], name: str = "Synthesized Emotive Gaits") -> str:
     """plan: trajectories, emotions, transitions, min_l1, prefix; lineage_source: where the provenance's stage
-    graph was read from (named in the card); parts: part name -> its shard files."""
+    graph was read from (named in the card); parts: part name -> its shard files; limitations: the figures
+    ``limitations.measure`` took from the published table."""
     shapes = meta["shapes"]
     generators = meta["generators"]
     by_generator = counts["synthetic_by_generator"]
@@ -50,4 +52,5 @@ def dataset_card(counts: dict[str, Any], meta: dict[str, Any], licences: dict[st
         families=", ".join(f"{k} ({v})" for k, v in counts["synthetic_by_family"].items()),
         columns="\n".join(f"| `{c}` | {shapes.get(c, 'scalar')} | {d} |" for c, d in COLUMN_DESCRIPTIONS.items()),
         emotion_order=", ".join(meta["emotion_order"]), lineage_source=lineage_source,
+        limitations=card_section(limitations), **seed_text(limitations),
         **{k: plan[k] for k in ("trajectories", "emotions", "transitions", "min_l1", "prefix")})

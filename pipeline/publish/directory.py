@@ -1,5 +1,6 @@
-"""Publishing a gait directory: Parquet shards, HDF5, stick-figure previews, the dataset card, Croissant 1.1,
-PROV-JSON lineage, the generator families' model lineage and SHA256SUMS, then the loader's verify over the result.
+"""Publishing a gait directory: Parquet shards, HDF5, stick-figure previews, the dataset card (with the known
+limitations measured on the gaits), Croissant 1.1, PROV-JSON lineage, the generator families' model lineage and
+SHA256SUMS, then the loader's verify over the result.
 
 Every shard holds one part, the real gaits or one generator family's, and names it
 (``gaits-<n>-<part>.parquet``, n counting over all shards in part order), so the card's Hugging Face configs can
@@ -14,6 +15,7 @@ import json
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
+from string import Template
 from typing import Any
 
 import numpy as np
@@ -25,6 +27,7 @@ from pipeline.io.files import schema_meta, write_json, write_parquet, write_text
 from pipeline.io.gait_table import column_array
 from pipeline.publish.card import dataset_card
 from pipeline.publish.croissant import croissant_metadata, croissant_problems, write_croissant
+from pipeline.publish.limitations import measure, seed_text
 from pipeline.publish.provenance import PROVENANCE_NAME, prov_document, write_provenance
 from pipeline.publish.table import COLUMN_DESCRIPTIONS, composition, published_parts, real_table
 from pipeline.viz.stick_figures import Motion, render_filmstrip
@@ -100,6 +103,15 @@ def previews(table: pa.Table, meta: dict[str, Any], out: Path, named_family: str
     return written
 
 
+def responsible_ai(meta: dict[str, Any], figures: dict[str, Any]) -> dict[str, str]:
+    """The Croissant RAI fields (``templates/responsible_ai.yaml``) with what they say of the generator families
+    and their seeds filled from the published table (``limitations.seed_text``)."""
+    words = {"families": ", ".join(meta["generators"]), "family_count": str(len(meta["generators"])),
+             **seed_text(figures)}
+    fields = yaml.safe_load(RESPONSIBLE_AI.read_text(encoding="utf-8"))
+    return {k: Template(v).substitute(words) for k, v in fields.items()}
+
+
 def publish_directory(real: pa.Table, real_arrays: dict[str, np.ndarray], families: list[pa.Table],
                       lineages: dict[str, dict[str, Any]], out: Path, cfg: PublishConfig, licences: dict[str, str],
                       plan: dict[str, Any], graph: dict[str, Any], repo_root: Path,
@@ -132,16 +144,17 @@ def publish_directory(real: pa.Table, real_arrays: dict[str, np.ndarray], famili
                out / GENERATORS_NAME)
     preview_files = previews(table, meta, out / "previews", named_family)
     counts = composition(table)
-    write_text(dataset_card(counts, meta, licences, plan, lineage_source, shards, named_family), out / "README.md")
+    figures = measure(table, meta)
+    write_text(dataset_card(counts, meta, licences, plan, lineage_source, shards, named_family, figures),
+               out / "README.md")
     doc = croissant_metadata(out, name=cfg.name, description=cfg.description, version=cfg.version,
                              license=cfg.license, citation=cfg.citation, url=cfg.url,
                              date_published=cfg.date_published, creators=cfg.creators,
-                             rai=yaml.safe_load(RESPONSIBLE_AI.read_text(encoding="utf-8")),
-                             column_descriptions=COLUMN_DESCRIPTIONS, parts=shards)
+                             rai=responsible_ai(meta, figures), column_descriptions=COLUMN_DESCRIPTIONS, parts=shards)
     write_croissant(out, doc)
     write_provenance(out / PROVENANCE_NAME, prov_document(graph, repo_root, out))
     write_sha256sums(out)
     problems = verify(out) + croissant_problems(out, doc)
-    return {"counts": counts, "shards": shards, "previews": preview_files,
+    return {"counts": counts, "limitations": figures, "shards": shards, "previews": preview_files,
             "files": sorted(f.name for f in out.iterdir() if f.is_file()), "verify_problems": problems,
             "verified": not problems}

@@ -38,7 +38,7 @@ from pipeline.ops.geometry import facing_off_travel, path_direction, travel_dire
 from stages.common import load_params  # noqa: E402
 from stages.configs import placement_config  # noqa: E402
 
-from generator_data import generator, legs_placement, split_gaits  # noqa: E402
+from generator_data import MODEL, generator, legs_placement, split_gaits  # noqa: E402
 
 OUT = REPO / "benchmarks" / "out" / "seed_contents.json"
 FRAMES = 60
@@ -66,12 +66,13 @@ def _facing_and_speed(positions: torch.Tensor, heading: torch.Tensor, fps: float
     return out
 
 
-def main() -> dict:
+def contents_kept(model_path: Path = MODEL, verbose: bool = True) -> dict:
+    """The figures of the module docstring for the generator checkpoint ``model_path``."""
     torch.set_num_threads(2)
     params = load_params()
     prefix = int(params["train"]["prefix"])
     arrays, split, content, dominant = split_gaits()
-    model, sha, skeleton, offsets = generator()
+    model, sha, skeleton, offsets = generator(model_path)
     placements = {"published": placement_config(params), "stance_foot": legs_placement(params)}
     fps = placements["published"].fps
     out = {"checkpoint_sha256": sha, "frames": FRAMES, "by_content": {}}
@@ -91,7 +92,13 @@ def main() -> dict:
                 g = generate(model, seeds, paths, condition, offsets, skeleton.parents, placement)
             entry[placement_name] = _facing_and_speed(g.positions, g.heading, fps, paths)
         out["by_content"][name] = entry
-        print(f"{name}: {json.dumps(entry)}", flush=True)
+        if verbose:
+            print(f"{name}: {json.dumps(entry)}", flush=True)
+    return out
+
+
+def main() -> dict:
+    out = contents_kept()
     write_json(out, OUT)
     print(json.dumps(out, indent=2))
     return out

@@ -85,15 +85,19 @@ def measure(table: pa.Table, meta: dict[str, Any]) -> dict[str, Any]:
                **{f: walking_figures(root_path[generator == f], emotion[generator == f], fps) for f in families}}
     joints = [meta["joint_names"].index(j) for j in TRUNK_JOINTS]
     rotations = column_array(table, "rotations", shapes["rotations"])
-    reference = trunk_turn_deg(rotations[train_walks], joints)
-    reference_median = np.median(reference, 0)
-    trunk: dict[str, Any] = {"real_train_walks": {"gaits": int(train_walks.sum()), **{
-        j: round(float(reference_median[k]), 1) for k, j in enumerate(TRUNK_JOINTS)}}}
+
+    def turn(mask: np.ndarray) -> np.ndarray:
+        return np.median(trunk_turn_deg(rotations[mask], joints), 0)
+
+    def turn_row(mask: np.ndarray, median: np.ndarray) -> dict[str, Any]:
+        return {"gaits": int(mask.sum()), **{j: round(float(median[k]), 1) for k, j in enumerate(TRUNK_JOINTS)}}
+
+    real_turn = turn(train_walks)
+    trunk: dict[str, Any] = {"real_train_walks": turn_row(train_walks, real_turn)}
     for f in families:
-        turn = np.median(trunk_turn_deg(rotations[generator == f], joints), 0)
-        trunk[f] = {"gaits": int((generator == f).sum()), **{
-            j: round(float(turn[k]), 1) for k, j in enumerate(TRUNK_JOINTS)},
-            "ratio_to_real": {j: round(float(turn[k] / reference_median[k]), 2) for k, j in enumerate(TRUNK_JOINTS)}}
+        own = turn(generator == f)
+        trunk[f] = {**turn_row(generator == f, own), "ratio_to_real": {
+            j: round(float(own[k] / real_turn[k]), 2) for k, j in enumerate(TRUNK_JOINTS)}}
     row_of = {g: i for i, g in enumerate(gait_id)}
     seeds = {}
     for f in families:

@@ -15,6 +15,7 @@ sys.path.insert(0, str(REPO))
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
+from pipeline.core.emotions import dominant_index  # noqa: E402
 from pipeline.core.skeleton import Skeleton, load_skeleton  # noqa: E402
 from pipeline.generators.autoregressive.network import EmotiveGaitNet  # noqa: E402
 from pipeline.generators.autoregressive.rollout import PlacementConfig  # noqa: E402
@@ -30,9 +31,8 @@ MODEL = REPO / "data" / "models" / "full.pt"
 def split_gaits(path: Path = GAITS) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, np.ndarray]:
     """(arrays, split (N,), content (N,), dominant emotion index (N,), -1 where unlabelled)."""
     table, arrays = read_gaits(path)
-    labelled = ~np.isnan(arrays["emotion"]).any(-1)
     return (arrays, np.array(table.column("split").to_pylist()), np.array(table.column("content").to_pylist()),
-            np.where(labelled, np.nan_to_num(arrays["emotion"]).argmax(-1), -1))
+            dominant_index(arrays["emotion"]))
 
 
 def generator(path: Path = MODEL) -> tuple[EmotiveGaitNet, str, Skeleton, torch.Tensor]:

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from pipeline.core.emotions import EMOTIONS, dominant_emotion
+from pipeline.core.emotions import EMOTIONS, dominant_emotion, dominant_index
 from pipeline.split import assign_splits, split_report
 
 FRACTIONS = {"train": 0.8, "val": 0.1, "test": 0.1}
@@ -44,6 +44,22 @@ def test_dominant_emotion_reports_ties_and_missing_labels():
     assert dominant_emotion(np.array([0.1, 0.6, 0.2, 0.1]), EMOTIONS) == "sad"
     assert dominant_emotion(np.array([0.4, 0.4, 0.1, 0.1]), EMOTIONS) == "tie"
     assert dominant_emotion(None, EMOTIONS) == "unlabelled"
+
+
+def test_dominant_index_agrees_with_dominant_emotion_on_the_real_labels(annotated):
+    """The index form (-1: unlabelled) names the same emotion as the string form for every real gait, keeps the
+    leading dimensions, and takes the first of a tie (the string form says 'tie')."""
+    _, arrays = annotated
+    index = dominant_index(arrays["emotion"])
+    named = [dominant_emotion(None if np.isnan(e).any() else e, EMOTIONS) for e in arrays["emotion"]]
+    assert (index >= 0).any() and (index == -1).any()
+    for k, name in zip(index, named):
+        assert (k == -1) == (name == "unlabelled")
+        assert k == -1 or name in (EMOTIONS[k], "tie")
+    per_frame = np.stack([arrays["emotion"]] * 3, axis=1)  # (N, 3, 4): per-frame labels
+    assert (dominant_index(per_frame) == index[:, None]).all()
+    assert dominant_index(np.array([0.4, 0.4, 0.1, 0.1])) == 0
+    assert dominant_index(np.array([0.1, np.nan, 0.1, 0.1])) == -1
 
 
 def test_min_held_out_keeps_two_labelled_clips_of_every_emotion_in_val_and_test(annotated):

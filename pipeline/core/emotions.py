@@ -20,6 +20,13 @@ SOURCE_LABEL_METHODS = ("actor_intended", "style_mapping")  # real gaits: the ac
 GENERATOR_LABEL_METHOD = "generator_condition"  # synthetic gaits: the condition they were generated with
 
 
+def dominant_index(emotion: np.ndarray) -> np.ndarray:
+    """(...) index of each label's largest component (EMOTIONS order; the first of a tie), -1 where unlabelled
+    (NaN components): labels (..., 4) as the gait table stores them."""
+    labelled = ~np.isnan(emotion).any(-1)
+    return np.where(labelled, np.nan_to_num(emotion).argmax(-1), -1)
+
+
 def dominant_emotion(emotion: np.ndarray | None, names: Sequence[str]) -> str:
     """The largest component's name, 'tie' when several share it, 'unlabelled' for no label."""
     if emotion is None or not np.isfinite(emotion).all():

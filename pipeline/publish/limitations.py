@@ -23,7 +23,7 @@ import numpy as np
 import pyarrow as pa
 import torch
 
-from pipeline.core.emotions import EMOTIONS
+from pipeline.core.emotions import EMOTIONS, dominant_index
 from pipeline.io.gait_table import column_array
 from pipeline.ops.geometry import facing_off_travel, odd_frames
 from pipeline.ops.quaternion import qspread
@@ -62,8 +62,8 @@ def measure(table: pa.Table, meta: dict[str, Any]) -> dict[str, Any]:
     root_path = column_array(table, "root_path", shapes["root_path"]).astype(np.float64)
     heading = column_array(table, "heading", shapes["heading"]).astype(np.float64)
     real = kind == "real"
-    labelled = real & ~np.isnan(emotion).any(-1)
-    dominant = np.where(np.isnan(emotion).any(-1), -1, np.nan_to_num(emotion).argmax(-1))
+    dominant = dominant_index(emotion)
+    labelled = real & (dominant >= 0)
     ground = torch.from_numpy(root_path)
     root = torch.stack((ground[..., 0], torch.zeros_like(ground[..., 0]), ground[..., 1]), -1)
     facing = np.degrees(facing_off_travel(root, torch.from_numpy(heading), odd_frames(TRAVEL_SECONDS, fps))

@@ -41,7 +41,7 @@ import pyarrow as pa
 import torch
 
 from pipeline.annotate.annotation import AnnotateConfig, annotate_clip
-from pipeline.core.emotions import EMOTIONS
+from pipeline.core.emotions import EMOTIONS, dominant_index
 from pipeline.core.skeleton import Skeleton
 from pipeline.generators.base import train_clips
 from pipeline.io.files import sha256_bytes
@@ -104,9 +104,7 @@ class Frames:
     @property
     def dominant(self) -> np.ndarray:
         """(F,) the dominant emotion index of each node's clip, -1: unlabelled."""
-        labelled = ~np.isnan(self.clip_emotion).any(-1)
-        per_clip = np.where(labelled, np.nan_to_num(self.clip_emotion).argmax(-1), -1)
-        return per_clip[self.clip]
+        return dominant_index(self.clip_emotion)[self.clip]
 
     def successor(self) -> np.ndarray:
         """(F,) the next frame of the same clip, -1 at a clip's last frame."""

@@ -27,7 +27,7 @@ import pyarrow as pa
 import torch
 
 from pipeline.annotate.annotation import AnnotateConfig, annotate_clip
-from pipeline.core.emotions import EMOTIONS
+from pipeline.core.emotions import EMOTIONS, dominant_index
 from pipeline.core.skeleton import Skeleton
 from pipeline.generators.base import train_clips
 from pipeline.ops.geometry import wrap_angle
@@ -80,8 +80,7 @@ class Cycles:
 
     def dominant(self) -> np.ndarray:
         """(C,) index of each cycle's dominant emotion (EMOTIONS order), -1 where unlabelled."""
-        labelled = ~np.isnan(self.emotion).any(-1)
-        return np.where(labelled, np.nan_to_num(self.emotion).argmax(-1), -1)
+        return dominant_index(self.emotion)
 
     def counts(self) -> dict[str, Any]:
         """Cycles per style and per dominant emotion, and the cycles left out with their reasons."""

@@ -21,8 +21,8 @@ angry condition. This measures, with the audit's own protocol, whether that help
   quarters neutral: with the class-balanced loss, the synthetic gaits then make up most of every rare emotion.
 
 Checkpoints: the pipeline's generator and any given with ``--checkpoints`` (e.g. content_repeats.py's). The figures
-choose nothing inside a generator: they say whether a seed rule is worth landing; the held-out gaits are few (89
-from 14 clips), so read the intervals. Printed as JSON and written to benchmarks/out/content_crossed.json.
+choose nothing inside a generator: they say whether a seed rule is worth landing; the held-out gaits are few (117
+from 20 clips), so read the intervals. Printed as JSON and written to benchmarks/out/content_crossed.json.
 Run from the repository root after ``dvc repro``:  ``python benchmarks/content_crossed.py [--checkpoints P ...]``.
 """
 

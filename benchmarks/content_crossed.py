@@ -14,7 +14,7 @@ angry condition. This measures, with the audit's own protocol, whether that help
   ``other_crossed`` (the contents other than forward walks under all four);
 - per recogniser and audit seed, the audit's augmentation (one synthetic gait drawn per real train gait, the same
   draw rule) against real-only, macro-F1 on the real held-out val + test gaits, all and split by content (the
-  audit's views), with the paired 95 % clip-bootstrap interval of the change; the published family's steady-label
+  audit's views) and by held-out split (val, test), with the paired 95 % clip-bootstrap interval of the change; the published family's steady-label
   gaits beside, also split into thirds by mean |path curvature| and by the share of their dominant emotion;
 - each set also drawn per emotion (``+matched``: as many synthetic gaits of each emotion as real train gaits have
   it), since the audit's draw follows the synthetic label mix (a fifth angry) while the real train split is three
@@ -104,7 +104,9 @@ def main() -> dict:
     names, inputs, label, train, test = (published.names, published.inputs, published.label, published.train,
                                          published.held)
     assert list(names) == list(EMOTIONS), (names, EMOTIONS)
-    views = {"all": np.ones(int(test.sum()), bool), **held_out_by_content(published.frame, test)}
+    held_split = published.frame["split"].to_numpy()[test]
+    views = {"all": np.ones(int(test.sum()), bool), **held_out_by_content(published.frame, test),
+             **{split: held_split == split for split in sorted(set(held_split))}}
     groups = clip_identity(published.frame)[test]
     real_train, held, y = inputs.select(train), inputs.select(test), label[test]
     count = int(train.sum())

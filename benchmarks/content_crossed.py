@@ -111,17 +111,17 @@ def main() -> dict:
     real_train, held, y = inputs.select(train), inputs.select(test), label[test]
     count = int(train.sum())
 
-    sets: dict[str, tuple[RecognitionInputs, np.ndarray]] = {}
+    # name -> (gaits, the rows of them the set draws from, every gait's label)
+    sets: dict[str, tuple[RecognitionInputs, np.ndarray, np.ndarray]] = {}
     published_rows = np.flatnonzero(published.families["autoregressive_affect"])
-    sets["published"] = (inputs, published_rows)
+    sets["published"] = (inputs, published_rows, label)
     # thirds of the published gaits by path curvature and by the share of their dominant emotion
     curvature = np.abs(inputs.movement[published_rows, :, MOVEMENT_NAMES.index("path_curvature")]).mean(1)
     share = np.array([max(published.frame["emotion"].iloc[i]) for i in published_rows])
     for name, value in {"curvature": curvature, "dominant_share": share}.items():
         low, high = np.quantile(value, [1 / 3, 2 / 3])
-        sets[f"published:lowest_third_{name}"] = (inputs, published_rows[value <= low])
-        sets[f"published:highest_third_{name}"] = (inputs, published_rows[value >= high])
-    synthetic_labels: dict[str, np.ndarray] = {}
+        sets[f"published:lowest_third_{name}"] = (inputs, published_rows[value <= low], label)
+        sets[f"published:highest_third_{name}"] = (inputs, published_rows[value >= high], label)
     checkpoints: dict[str, str] = {}
     for path in [MODEL, *args.checkpoints]:
         started = time.perf_counter()
@@ -132,46 +132,45 @@ def main() -> dict:
         rules = {"walk_own": walk & (own == gen_label), "walk_crossed": walk, "all_crossed": np.ones_like(walk),
                  "other_crossed": ~walk}
         for rule, mask in rules.items():
-            sets[f"{tag}:{rule}"] = (gen, np.flatnonzero(mask))
-            synthetic_labels[f"{tag}:{rule}"] = gen_label
+            sets[f"{tag}:{rule}"] = (gen, np.flatnonzero(mask), gen_label)
         print(f"content_crossed: {tag}: {len(gen_label)} gaits generated in {time.perf_counter() - started:.0f} s",
               flush=True)
 
     sets.update({f"{name}{MATCHED}": entry for name, entry in list(sets.items())})
 
-    def macro_f1(predicted: np.ndarray) -> dict[str, float]:
-        return {v: scores(confusion(y[m], predicted[m], len(names)))["macro_f1"] for v, m in views.items()}
+    def mean_macro_f1(predictions: list[np.ndarray]) -> dict[str, float]:
+        """Per view, macro-F1 on the held-out gaits averaged over the seeds' predictions."""
+        return {v: float(np.mean([scores(confusion(y[m], p[m], len(names)))["macro_f1"] for p in predictions]))
+                for v, m in views.items()}
 
     out: dict = {"protocol": "audit.augmentation: per seed, one synthetic gait drawn per labelled real train gait; "
                              "macro-F1 on the real held-out val + test gaits (mean over the audit's seeds), change "
                              "from real-only with its paired 95 % clip-bootstrap interval",
                  "checkpoints": checkpoints, "real_train": count,
                  "held_out": {v: int(m.sum()) for v, m in views.items()},
-                 "pool_sizes": {name: int(len(rows)) for name, (_, rows) in sets.items()}, "recognisers": {}}
+                 "pool_sizes": {name: int(len(rows)) for name, (_, rows, _) in sets.items()}, "recognisers": {}}
     for kind in RECOGNISERS:
         started = time.perf_counter()
         before: list[np.ndarray] = []
         after: dict[str, list[np.ndarray]] = {name: [] for name in sets}
         for seed in cfg.seeds[kind]:
             before.append(fit_recogniser(kind, real_train, label[train], cfg.recognisers, seed).predict(held))
-            for name, (source, pool) in sets.items():
-                labels = synthetic_labels.get(name.removesuffix(MATCHED), label)
+            for name, (source, pool, labels) in sets.items():
                 drawn = (matched_draw(pool, labels, label[train], seed) if name.endswith(MATCHED)
                          else augmentation_draw(pool, count, seed))
                 both = RecognitionInputs.concatenate([real_train, source.select(drawn)])
                 fitted = fit_recogniser(kind, both, np.concatenate([label[train], labels[drawn]]), cfg.recognisers,
                                         seed)
                 after[name].append(fitted.predict(held))
-        entry: dict = {"real_only_macro_f1": {v: round(float(np.mean([macro_f1(p)[v] for p in before])), 4)
-                                              for v in views}, "sets": {}}
+        entry: dict = {"real_only_macro_f1": {v: round(f, 4) for v, f in mean_macro_f1(before).items()}, "sets": {}}
         for name, answers in after.items():
             per_view = {}
+            mean_after = mean_macro_f1(answers)
             for v, m in views.items():
-                mean_after = float(np.mean([macro_f1(p)[v] for p in answers]))
                 ci = bootstrap_delta_interval(groups[m], y[m], np.stack([p[m] for p in before]),
                                               np.stack([p[m] for p in answers]), len(names), cfg.bootstrap_resamples)
-                per_view[v] = {"macro_f1": round(mean_after, 4),
-                               "delta_pts": round(100 * (mean_after - entry["real_only_macro_f1"][v]), 1),
+                per_view[v] = {"macro_f1": round(mean_after[v], 4),
+                               "delta_pts": round(100 * (mean_after[v] - entry["real_only_macro_f1"][v]), 1),
                                "delta_ci95_pts": [round(100 * c, 1) for c in ci["macro_f1"]]}
             entry["sets"][name] = per_view
             print(f"content_crossed: {kind} {name}: " + ", ".join(

@@ -13,6 +13,7 @@ from pipeline.evaluation.autoregressive import constant_velocity, pose_errors, s
 from pipeline.io.files import write_bytes
 from pipeline.generators.autoregressive.rollout import (PlacementConfig, Seeds, generate, place_paths, smoothed_root,
                                                       stance_step, swinging_points)
+from pipeline.generators.autoregressive.fit import variant_configs
 from pipeline.generators.autoregressive.network import (FOOT_JOINTS, EmotiveGaitNet, GeneratorConfig, LossWeights,
                                                        fixed_bones, generator_losses)
 from pipeline.ops.geometry import distance_to_polyline, odd_frames
@@ -89,6 +90,34 @@ def test_loss_weights_switch_terms_off(gaits, offsets, skeleton):
     only_root = LossWeights(motion=0, pose=0, affective=0, root=1, foot=0)
     losses = generator_losses(pred, targets(batch, 18), model, offsets, skeleton.parents, only_root)
     assert float(losses.total.detach()) == pytest.approx(float(losses.root.detach()))
+
+
+def test_motion_joint_weights_scale_only_the_named_joints_share_of_the_motion_term(gaits, offsets, skeleton):
+    _, _, g = gaits
+    model = _model(g)
+    batch = g.select(slice(0, 4))
+    pred = rollout(model, batch, offsets, skeleton.parents, prefix=18)
+    target = targets(batch, 18)
+
+    def motion(**joints):
+        return float(generator_losses(pred, target, model, offsets, skeleton.parents,
+                                      LossWeights(versor=0.0, motion_joints=joints)).motion.detach())
+
+    base = motion()
+    head_only = motion(**{n: (1.0 if n == "head" else 0.0) for n in skeleton.names})
+    assert 0.0 < head_only < base
+    assert motion(head=11.0) == pytest.approx(base + 10.0 * head_only, rel=1e-5)
+    assert motion(head=1.0) == pytest.approx(base, rel=1e-6)
+
+
+def test_motion_joint_weights_come_from_params_and_reject_unknown_joints():
+    train = {"loss": {"motion": 1, "motion_joints": {"neck": 11, "head": 11}},
+             "variants": {"full": {}, "no_affect": {"loss": {"affective": 0}}}}
+    variants = variant_configs(train)
+    assert all(w.motion_joints == {"neck": 11.0, "head": 11.0} for _, _, w in variants.values())
+    assert variants["no_affect"][2].affective == 0.0
+    with pytest.raises(ValueError, match="nose"):
+        LossWeights(motion_joints={"nose": 2.0})
 
 
 def test_training_is_reproducible_and_checkpoints_are_byte_identical(gaits, offsets, skeleton, tmp_path):

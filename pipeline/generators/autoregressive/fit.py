@@ -35,17 +35,23 @@ def critic_config(train: dict[str, Any]) -> CriticConfig:
     return CriticConfig(**{k: v for k, v in (train.get("critic") or {}).items()})
 
 
+def _loss_weights(loss: dict[str, Any] | None) -> dict[str, Any]:
+    """A ``train.loss`` mapping as LossWeights fields: floats, and ``motion_joints`` as joint name -> float."""
+    return {k: ({j: float(w) for j, w in v.items()} if k == "motion_joints" else float(v))
+            for k, v in (loss or {}).items()}
+
+
 def variant_configs(train: dict[str, Any]) -> Variants:
     """The configs of every variant from a ``train`` mapping: base ``model``/``loss`` with each variant's changes."""
     p = train
     base_model = dict(p.get("model") or {})
-    base_loss = {k: float(v) for k, v in (p.get("loss") or {}).items()}
+    base_loss = _loss_weights(p.get("loss"))
     train = TrainConfig(**{k: v for k, v in p.items() if k in TrainConfig.__dataclass_fields__})
     out = {}
     for name, change in (p.get("variants") or {"full": {}}).items():
         change = change or {}
         model = GeneratorConfig.from_dict({**base_model, **(change.get("model") or {})})
-        loss = LossWeights(**{**base_loss, **{k: float(v) for k, v in (change.get("loss") or {}).items()}})
+        loss = LossWeights(**{**base_loss, **_loss_weights(change.get("loss"))})
         out[name] = (model, train, loss)
     return out
 

@@ -16,7 +16,7 @@ from pipeline.generators.autoregressive.rollout import (PlacementConfig, Seeds, 
 from pipeline.generators.autoregressive.fit import variant_configs
 from pipeline.generators.autoregressive.network import (FOOT_JOINTS, EmotiveGaitNet, GeneratorConfig, LossWeights,
                                                        fixed_bones, generator_losses)
-from pipeline.ops.geometry import distance_to_polyline, odd_frames
+from pipeline.ops.geometry import distance_to_polyline, odd_frames, unit_direction
 from pipeline.ops.quaternion import euler_to_quat, qangle, qnormalize, quat_to_euler
 from pipeline.generators.autoregressive.training import (
     GaitTensors,
@@ -292,6 +292,23 @@ def test_stance_foot_placement_keeps_the_lowest_point_planted(gaits, offsets, sk
     assert float(slide[clear].max()) < 1e-4
     assert torch.allclose(out.advance[:, 1:], torch.linalg.vector_norm(
         out.positions[:, 1:, 0, [0, 2]] - out.positions[:, :-1, 0, [0, 2]], dim=-1), atol=1e-5)
+
+
+def test_forward_steps_only_never_carries_the_root_back_against_its_travel(gaits, offsets, skeleton):
+    arrays, rows, g = gaits
+    model = _model(g)
+    seeds = Seeds.from_arrays(arrays, rows[:12], prefix=18)
+    paths, emotions = place_paths(straight_path(), seeds), torch.full((12, 40, 4), 0.25)
+
+    def ahead(cfg: PlacementConfig) -> torch.Tensor:  # each placed root step along the frame's travel direction
+        out = generate(model, seeds, paths, emotions, offsets, skeleton.parents, cfg)
+        ground = torch.cat([seeds.gaits.root_position[:, -1:, [0, 2]], out.positions[:, :, 0, [0, 2]]], 1)
+        return (ground.diff(dim=1) * unit_direction(out.travel)).sum(-1)
+
+    free, forward = ahead(PlacementConfig()), ahead(PlacementConfig(forward_steps_only=True))
+    assert int((free < -1e-4).sum()) > 0  # the untrained network's steps do hesitate and go back
+    assert float(forward.min()) > -1e-6
+    assert float(forward.clamp_min(0).sum()) > 0.5 * float(free.clamp_min(0).sum())  # it still walks
 
 
 def test_foot_lock_publishes_the_locked_legs_of_the_same_walk(gaits, offsets, skeleton):

@@ -9,6 +9,9 @@ paper §4 and §5.4) and the root is placed from the predicted root features (pa
   lower than the stance foot. The network's ŝ alone advances the root faster than its strides carry it (feet
   then slide ~3.4x as fast as real stance feet: reports/eval.md), so ŝ is kept as the network's input (it
   conditions the motion) but no longer places the root.
+  With ``forward_steps_only`` the part of that step against the travel direction is dropped: where a generated
+  step hesitates, the stance point can slip forward and carry the root back, a small loop in the root's path
+  (benchmarks/root_loops.py); the stance foot then slides by that much instead.
   ``predicted_speed`` is the paper's placement: the root advances by ŝ (m/frame, clamped to [0, max_speed])
   along the travel direction.
 * direction: the travel direction turns towards a point ``lookahead_m`` ahead on the target path (pure
@@ -78,6 +81,8 @@ class PlacementConfig:
                                   # and is then never the stance foot (1: the lowest point, whatever the phase)
     drift_seconds: float = 1.0
     max_drift_deg: float = 15.0
+    forward_steps_only: bool = False  # drop the part of a stance step against the travel direction (a hesitating
+                                      # generated step would carry the root back: a small loop in its path)
     guidance: float = 1.0  # classifier-free guidance w of the condition (1: none; see ``generate``)
     expression_sharpness: float = 1.0  # the condition of an emotion m is m^p / sum(m^p) (1: m itself; ``generate``)
     root_smoothing_s: float = 0.0  # centred moving average of the placed root's ground path (``smoothed_root``)
@@ -267,6 +272,8 @@ def generate(model: EmotiveGaitNet, seeds: Seeds, paths: torch.Tensor, emotions:
             swinging = swinging_points(theta[:, t], cfg.stance_fraction) if cfg.stance_fraction < 1.0 else None
             step = stance_step(previous_feet, local[:, feet], cfg.stance_softness_m, cfg.max_speed_m_s / cfg.fps,
                                swinging)
+            if cfg.forward_steps_only:
+                step = step - (step * along).sum(-1, keepdim=True).clamp(max=0.0) * along
             previous_feet = local[:, feet]
             relative = to_local_frame(step, along)  # (sideways, ahead) of the travel direction
             mean_step = mean_step + (relative - mean_step) / (cfg.drift_seconds * cfg.fps)

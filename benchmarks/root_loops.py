@@ -28,12 +28,11 @@ REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
 import numpy as np  # noqa: E402
-import torch  # noqa: E402
 import yaml  # noqa: E402
 
 from pipeline.dataset import load_dataframe  # noqa: E402
 from pipeline.io.files import write_json  # noqa: E402
-from pipeline.ops.geometry import direction_of  # noqa: E402
+from pipeline.publish.limitations import LOOP_DEG, REVERSAL_DEG, root_path_figures  # noqa: E402
 from stages.common import load_params  # noqa: E402
 
 OUT = REPO / "benchmarks" / "out" / "root_loops.json"
@@ -41,25 +40,8 @@ PUBLISHED = Path("data") / "published" / "synthesized_emotive_gaits"
 COLUMNS = ["kind", "generator", "content", "trajectory_family", "root_path"]
 
 
-def root_turns(root_path: np.ndarray, frames: int) -> dict[str, np.ndarray]:
-    """(N, T, 2) ground root paths -> per gait the largest turn (rad) of the step direction within ``frames``
-    frames, and per frame whether the step points against the displacement over ``frames`` frames around it."""
-    path = torch.as_tensor(root_path, dtype=torch.float64)
-    step = path[:, 1:] - path[:, :-1]
-    turning = torch.from_numpy(np.unwrap(direction_of(step[..., 0], step[..., 1]).numpy(), axis=1))
-    largest = (turning[:, frames:] - turning[:, :-frames]).abs().amax(1)
-    half = frames // 2
-    local = path[:, 2 * half:] - path[:, :-2 * half]                 # centred on step frames half .. T-1-half
-    against = (step[:, half - 1:half - 1 + local.shape[1]] * local).sum(-1) < 0
-    return {"largest_turn": largest.numpy(), "against": against.numpy()}
-
-
 def summary(root_path: np.ndarray, frames: int) -> dict:
-    turns = root_turns(root_path, frames)
-    return {"gaits": int(len(root_path)),
-            "loops": round(float((turns["largest_turn"] > np.deg2rad(270)).mean()), 4),
-            "reversals": round(float((turns["largest_turn"] > np.pi).mean()), 4),
-            "frames_against_travel": round(float(turns["against"].mean()), 4)}
+    return {"gaits": int(len(root_path)), **{k: round(v, 4) for k, v in root_path_figures(root_path, frames).items()}}
 
 
 def groups(directory: Path, frames: int) -> dict:
@@ -98,7 +80,7 @@ def main() -> dict:
     parser.add_argument("--rev", help="also the published gaits of this commit's dvc.lock (from the DVC cache)")
     args = parser.parse_args()
     frames = max(2, round(args.window * float(load_params()["ingest"]["target_fps"])))
-    out = {"window_frames": frames, "loop_deg": 270, "reversal_deg": 180,
+    out = {"window_frames": frames, "loop_deg": LOOP_DEG, "reversal_deg": REVERSAL_DEG,
            "published": groups(REPO / PUBLISHED, frames)}
     if args.rev:
         with tempfile.TemporaryDirectory() as tmp:

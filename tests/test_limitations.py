@@ -15,11 +15,11 @@ import torch
 from pipeline.core.emotions import EMOTIONS
 from pipeline.io.files import schema_meta, with_schema_meta
 from pipeline.io.gait_table import array_column, column_array
-from pipeline.ops.geometry import facing_off_travel
+from pipeline.ops.geometry import facing_off_travel, path_turns
 from pipeline.ops.quaternion import axis_angle, qmul, qspread
 from pipeline.publish.card import dataset_card
 from pipeline.publish.directory import responsible_ai
-from pipeline.publish.limitations import TRUNK_JOINTS, card_section, measure, trunk_turn_deg
+from pipeline.publish.limitations import TRUNK_JOINTS, card_section, measure, root_path_figures, trunk_turn_deg
 from pipeline.publish.table import generator_entry, real_table
 
 
@@ -40,6 +40,28 @@ def test_facing_off_travel_reads_forwards_sideways_and_backwards():
     for heading, expected in ((math.pi / 2, 0.0), (0.0, -math.pi / 2), (-math.pi / 2, -math.pi)):
         off = facing_off_travel(root, torch.full_like(t, heading), 31)
         assert torch.allclose(off, torch.full_like(off, expected), atol=1e-9), heading
+
+
+def _loop(path: np.ndarray, first: int, frames: int = 12, radius_m: float = 0.2) -> np.ndarray:
+    """A ground path (T, 2) with a circle of ``radius_m`` walked in ``frames`` frames from ``first`` on top of it:
+    its steps then turn a full turn in those frames (faster than the walk advances, so it curls back)."""
+    t = np.clip(np.arange(len(path)) - first, 0, frames) / frames * 2 * np.pi
+    return path + radius_m * np.stack((np.sin(t), 1 - np.cos(t)), -1)
+
+
+def test_path_turns_find_a_small_loop_and_the_steps_back_in_it_and_nothing_on_a_line_or_a_corner():
+    t = np.arange(60, dtype=np.float64)
+    line = np.stack((np.zeros_like(t), 0.045 * t), -1)  # 1.35 m/s at 30 fps
+    corner = np.where(t[:, None] < 30, line, np.stack((0.045 * (t - 29), np.full_like(t, 0.045 * 29)), -1))
+    for path, turn, backs in ((line, 0.0, 0), (corner, 90.0, 0)):
+        largest, against = path_turns(torch.from_numpy(path), 15)
+        assert math.degrees(float(largest)) == pytest.approx(turn, abs=1e-6)
+        assert int(against.sum()) == backs
+    largest, against = path_turns(torch.from_numpy(_loop(line, 20)), 15)
+    assert math.degrees(float(largest)) > 300.0
+    assert 0 < int(against.sum()) < 12 and not against[:5].any() and not against[-10:].any()
+    figures = root_path_figures(np.stack([line, corner, _loop(line, 20), _loop(corner, 40)]), 15)
+    assert figures["loops"] == 0.5 and figures["reversals"] == 0.5 and 0 < figures["frames_against_travel"] < 0.1
 
 
 def _replace(table: pa.Table, name: str, values) -> pa.Table:
@@ -140,3 +162,21 @@ def test_the_card_and_the_croissant_name_the_seeds_split_the_data_shows(publishe
     card = dataset_card(counts, meta, {}, plan, "dvc.lock", {"real": [], "nodding": []}, "nodding", figures)
     assert "## Known limitations\n" + section in card
     assert "frames of a labelled real val-split gait (walk)" in " ".join(card.split())
+
+
+def test_a_family_whose_roots_circle_shows_in_the_root_path_table(published_table):
+    table, meta, walks, _, _ = published_table
+    generator = np.array(table.column("generator").to_pylist())
+    paths = column_array(table, "root_path", meta["shapes"]["root_path"]).astype(np.float64)
+    looping = generator == "backwards"
+    paths[looping] = [_loop(p, 10 + (k % 35)) for k, p in enumerate(paths[looping])]
+    figures = measure(_replace(table, "root_path", paths), meta)["root_path"]
+    # the real mocap walks hardly ever loop; the nodding family is real walks unchanged, the other circles in each
+    assert figures["real_walks"]["loops"] < 0.01 and figures["real_walks"]["gaits"] > len(walks)
+    assert figures["nodding"]["loops"] < 0.02 and figures["nodding"]["frames_against_travel"] < 0.01
+    assert figures["backwards"]["loops"] == 1.0 and figures["backwards"]["reversals"] == 1.0
+    assert figures["backwards"]["frames_against_travel"] > figures["nodding"]["frames_against_travel"] + 0.05
+    assert figures["backwards"]["gaits"] == len(walks)
+    section = card_section(measure(_replace(table, "root_path", paths), meta))
+    assert "| `backwards` | " + str(len(walks)) + " | 100.00 % | 100.00 % |" in section
+    assert "| real walks | " in section

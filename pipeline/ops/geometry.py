@@ -12,6 +12,7 @@ along +X (the body's left when it faces +Z), i.e. atan2(x, z).
   ``from_local_frame``;
 * polylines: ``segment_lengths``, ``arc_lengths``, ``point_at_arc`` and ``points_at_arcs`` (points at given arc
   lengths), ``resample_polyline`` (points at equal arc length), ``closest_arc``, ``distance_to_polyline``;
+  ``path_turns`` (how a path curls: small loops, steps against the travel);
   ``ground_speed`` of a sequence of positions;
 * angles: ``wrap_phase`` ([0, 2π)), ``wrap_angle`` and ``wrap_angle_atan2`` ([-π, π));
 * axes: ``to_y_up`` (a source's axes onto Y up);
@@ -215,6 +216,23 @@ def closest_arc(points: torch.Tensor, paths: torch.Tensor, cumulative: torch.Ten
 def distance_to_polyline(points: torch.Tensor, paths: torch.Tensor) -> torch.Tensor:
     """Distance (N, S) of ground points (N, S, 2) to the polylines paths (N, K, 2)."""
     return _segment_projection(points, paths)[1].min(-1).values
+
+
+def path_turns(path: torch.Tensor, frames: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """How a ground path (..., T, 2) curls: per path the largest turn (radians, >= 0) of its step direction within
+    ``frames`` frames (>= 2; over 3π/2: a small loop, a walk's sharpest corner turns far less), and per step
+    whether it points against the displacement over ``frames`` frames around it, (..., T - 2 (frames // 2)) bool,
+    for the steps from ``frames // 2 - 1`` on. The step direction is unwrapped frame to frame (a step turns by
+    less than π from the one before)."""
+    step = path[..., 1:, :] - path[..., :-1, :]
+    direction = direction_of(step[..., 0], step[..., 1])
+    turned = torch.cumsum(wrap_angle(direction[..., 1:] - direction[..., :-1]), -1)
+    turning = torch.cat([torch.zeros_like(turned[..., :1]), turned], -1)  # from the first step's direction
+    largest = (turning[..., frames:] - turning[..., :-frames]).abs().amax(-1)
+    half = frames // 2
+    local = path[..., 2 * half:, :] - path[..., :-2 * half, :]
+    against = (step[..., half - 1:half - 1 + local.shape[-2], :] * local).sum(-1) < 0
+    return largest, against
 
 
 # ---------------------------------------------------------------------------------------------------------- angles

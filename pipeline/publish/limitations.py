@@ -11,6 +11,9 @@ that seeds came from the test split, long after neither was true. What can be me
 - trunk and head: per family, how far the spine, neck and head rotations turn within a gait, against real
   train-split walks (the head is a leaf of the skeleton: its rotation moves no joint position, so only a rig on
   the published rotations shows it);
+- root paths: per family, how often the root's ground path curls into a small loop or reverses within half a
+  second, and how many of its steps point against the direction of travel, against real walks (a hesitating
+  generated step can carry the root back: ``generate.forward_steps_only``);
 - seeds: the splits and contents of the real gaits the seeded families start from.
 """
 
@@ -25,12 +28,15 @@ import torch
 
 from pipeline.core.emotions import EMOTIONS, dominant_index
 from pipeline.io.gait_table import column_array
-from pipeline.ops.geometry import facing_off_travel, odd_frames
+from pipeline.ops.geometry import facing_off_travel, odd_frames, path_turns
 from pipeline.ops.quaternion import qspread
 from pipeline.synth.synthesis import net_and_path_speed, walking_figures
 
 TRUNK_JOINTS = ("spine", "neck", "head")
 TRAVEL_SECONDS = 1.0  # the direction of travel is the mean step over about a stride (as the generator reads it)
+LOOP_SECONDS = 0.5  # a root path turning by more than LOOP_DEG within it curls into a loop (real walks: ~1 in 700)
+LOOP_DEG = 270  # a planned trajectory's sharpest corner turns 135 deg
+REVERSAL_DEG = 180
 CHUNK = 512  # gaits per batch of the pairwise frame angles (CHUNK x joints x T x T)
 
 
@@ -50,6 +56,16 @@ def trunk_turn_deg(rotations: np.ndarray, joints: list[int]) -> np.ndarray:
         q = torch.from_numpy(np.ascontiguousarray(rotations[first:first + CHUNK][:, :, joints].transpose(0, 2, 1, 3)))
         out.append(torch.rad2deg(qspread(q.double())).numpy())
     return np.concatenate(out) if out else np.zeros((0, len(joints)))
+
+
+def root_path_figures(root_path: np.ndarray, frames: int) -> dict[str, float]:
+    """Shares of ground root paths (N, T, 2) that loop (the step direction turns by more than ``LOOP_DEG`` within
+    ``frames`` frames) or reverse (``REVERSAL_DEG``), and of their steps that point against the displacement over
+    ``frames`` frames around them (``geometry.path_turns``)."""
+    largest, against = (t.numpy() for t in path_turns(torch.as_tensor(root_path, dtype=torch.float64), frames))
+    return {"loops": float((largest > np.deg2rad(LOOP_DEG)).mean()),
+            "reversals": float((largest > np.deg2rad(REVERSAL_DEG)).mean()),
+            "frames_against_travel": float(against.mean())}
 
 
 def measure(table: pa.Table, meta: dict[str, Any]) -> dict[str, Any]:
@@ -98,6 +114,15 @@ def measure(table: pa.Table, meta: dict[str, Any]) -> dict[str, Any]:
         own = turn(generator == f)
         trunk[f] = {**turn_row(generator == f, own), "ratio_to_real": {
             j: round(float(own[k] / real_turn[k]), 2) for k, j in enumerate(TRUNK_JOINTS)}}
+    loop_frames = max(2, round(LOOP_SECONDS * fps))
+
+    def root_row(mask: np.ndarray) -> dict[str, Any]:
+        if not mask.any():
+            return {"gaits": 0, "loops": None, "reversals": None, "frames_against_travel": None}
+        return {"gaits": int(mask.sum()),
+                **{k: round(v, 4) for k, v in root_path_figures(root_path[mask], loop_frames).items()}}
+
+    root_paths = {"real_walks": root_row(real & (content == "walk")), **{f: root_row(generator == f) for f in families}}
     row_of = {g: i for i, g in enumerate(gait_id)}
     seeds = {}
     for f in families:
@@ -109,8 +134,11 @@ def measure(table: pa.Table, meta: dict[str, Any]) -> dict[str, Any]:
                                              "of travel| (the mean step over 1 s)",
                     "net_speed_m_s": "start-to-end ground distance of the root / duration, median over gaits",
                     "trunk_turn_deg": "median over gaits of the largest angle between two frames' local rotations "
-                                      "of the joint"},
-            "contents": contents, "walking": walking, "trunk_turn_deg": trunk, "seeds": seeds}
+                                      "of the joint",
+                    "root_path": f"shares of gaits whose root's ground step direction turns by more than {LOOP_DEG} "
+                                 f"(loops) or {REVERSAL_DEG} deg (reversals) within {loop_frames} frames, and of "
+                                 "steps against the displacement over those frames around them"},
+            "contents": contents, "walking": walking, "trunk_turn_deg": trunk, "root_path": root_paths, "seeds": seeds}
 
 
 def _cell(value: float | None, spec: str, unit: str) -> str:
@@ -135,6 +163,10 @@ def card_section(figures: dict[str, Any]) -> str:
              if key == "real_train_walks" else
              [f"`{key}`", *(f"{t[j]:.1f}° ({t['ratio_to_real'][j]:.2f}×)" for j in TRUNK_JOINTS)]
              for key, t in figures["trunk_turn_deg"].items()]
+    roots = [["real walks" if key == "real_walks" else f"`{key}`", str(r["gaits"]),
+              *(_cell(None if r[k] is None else 100 * r[k], ".2f", " %")
+                for k in ("loops", "reversals", "frames_against_travel"))]
+             for key, r in figures["root_path"].items()]
     return "\n".join([
         "Measured on these files when they were written, without a recogniser (the pipeline's "
         "`reports/publish.json` holds the same figures).", "",
@@ -149,6 +181,11 @@ def card_section(figures: dict[str, Any]) -> str:
         "its frames, median over gaits), against real train-split walks. The head is a leaf of the skeleton: its "
         "rotation moves no published joint position, but a character rigged on the published rotations shows it.",
         "", *_table(["gaits", *TRUNK_JOINTS], trunk), "",
+        f"**Root paths.** How often a gait's root path curls into a small loop (its step direction turns by more than "
+        f"{LOOP_DEG}° within {LOOP_SECONDS:g} s; a planned trajectory's sharpest corner turns 135°) or reverses "
+        f"(more than {REVERSAL_DEG}°), and the share of steps against the direction of travel. Where a generated "
+        "step hesitates, the root can circle on the spot for a moment; a character follows the root.", "",
+        *_table(["gaits", "count", "loops", "reversals", "steps against travel"], roots), "",
         "Whether adding synthetic gaits to real training data helps an emotion recogniser depends on the recogniser "
         "and on the contents it is tested on: measure it (the pipeline's audit, `emogait audit`) before relying "
         "on it."])

@@ -358,3 +358,34 @@ def test_the_emotion_feature_rule_keeps_more_components_where_the_basis_loses_em
     assert loose == f.components and list(tried) == [f.components]
     k, tried = components_for_emotions(x, dominant, f.basis, 0.5, f.components, *args)
     assert f.components < k <= len(f.basis.explained) and max(tried[k]) <= 0.5
+
+
+def test_forward_steps_only_keeps_the_root_from_stepping_back_on_the_plan(family, annotated_split):
+    """The placement's ``forward_steps_only`` (a ``generate`` param, shared with the autoregressive family): without
+    it a stance point that slips forward carries the root back and its path curls (about 1 gait in 30 of the plan's
+    rows); with it the root keeps going and walks as far."""
+    from dataclasses import replace
+
+    from pipeline.publish.limitations import root_path_figures
+    from pipeline.synth.synthesis import SynthesisConfig, SynthesisPlan, synthesize
+
+    fam, _ = family
+    assert fam.placement.forward_steps_only  # the default params
+    free = replace(fam, placement=replace(fam.placement, forward_steps_only=False), counts={})
+    table, arrays, _, _ = annotated_split
+    params = load_params()
+    cfg = SynthesisConfig.from_dict(params["synthesize"], frames=60)
+    work = SynthesisPlan.prepare(table, arrays, cfg)
+    rows = work.plan[::10]
+    figures, walked = {}, {}
+    for name, f in (("forward", fam), ("free", free)):
+        root_path = synthesize(f, rows, work.emotions, {t.id: t for t in work.trajectories}, fam.skeleton,
+                               annotate_config(params), cfg)["root_path"].astype(np.float64)
+        figures[name] = root_path_figures(root_path, 15)
+        walked[name] = float(np.linalg.norm(np.diff(root_path, axis=1), axis=-1).sum())
+    assert figures["free"]["loops"] > 0.02 and figures["free"]["frames_against_travel"] > 0.002, figures
+    assert figures["forward"]["loops"] <= 0.25 * figures["free"]["loops"], figures
+    assert figures["forward"]["reversals"] <= 0.25 * figures["free"]["reversals"], figures
+    # what steps against the travel are left follow sideways sway at a turn, not a step back
+    assert figures["forward"]["frames_against_travel"] < figures["free"]["frames_against_travel"], figures
+    assert walked["forward"] > 0.98 * walked["free"]

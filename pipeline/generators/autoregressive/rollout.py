@@ -183,6 +183,12 @@ def stance_step(previous_feet: torch.Tensor, feet: torch.Tensor, softness_m: flo
     return step * (length.clamp(max=max_step) / length.clamp_min(1e-9))
 
 
+def forward_only(step: torch.Tensor, along: torch.Tensor) -> torch.Tensor:
+    """A ground step (N, 2) without its part against the unit travel direction ``along`` (N, 2): a hesitating
+    generated step whose stance point slips forward would carry the root back, a small loop in its path."""
+    return step - (step * along).sum(-1, keepdim=True).clamp(max=0.0) * along
+
+
 def swinging_points(theta: torch.Tensor, stance_fraction: float) -> torch.Tensor:
     """(..., 4) bool in ``ops.contacts.CONTACT_POINTS`` order: the heel/toe points of a foot in its swing phase by
     the stepping phase θ (...) (0 at a left strike, π at the next right strike): a foot is down for the first
@@ -273,7 +279,7 @@ def generate(model: EmotiveGaitNet, seeds: Seeds, paths: torch.Tensor, emotions:
             step = stance_step(previous_feet, local[:, feet], cfg.stance_softness_m, cfg.max_speed_m_s / cfg.fps,
                                swinging)
             if cfg.forward_steps_only:
-                step = step - (step * along).sum(-1, keepdim=True).clamp(max=0.0) * along
+                step = forward_only(step, along)
             previous_feet = local[:, feet]
             relative = to_local_frame(step, along)  # (sideways, ahead) of the travel direction
             mean_step = mean_step + (relative - mean_step) / (cfg.drift_seconds * cfg.fps)

@@ -72,3 +72,20 @@ def test_the_installed_environment_is_the_lock():
         if found != version:
             wrong[name] = (str(version), str(found))
     assert not wrong, f"installed versions differ from requirements.lock (locked, installed): {wrong}"
+
+
+def test_importing_the_library_pins_torch_s_cpu_code_paths_unless_the_user_set_them():
+    """MKL and ATen pick their kernels by CPU; unpinned, an AVX-512 machine wrote other bytes than an AVX2 one."""
+    import os
+    import subprocess
+
+    probe = ("import os, torch, pipeline; torch.ones(3).sum(); "
+             "print(torch.backends.cpu.get_cpu_capability(), os.environ['MKL_CBWR'])")
+    env = {k: v for k, v in os.environ.items() if k not in ("MKL_CBWR", "ATEN_CPU_CAPABILITY")}
+    pinned = subprocess.run([sys.executable, "-c", probe], env=env, cwd=REPO, capture_output=True, text=True,
+                            check=True).stdout.split()
+    assert pinned == ["AVX2", "AVX2"]
+    chosen = subprocess.run([sys.executable, "-c", probe], env={**env, "ATEN_CPU_CAPABILITY": "default",
+                                                                "MKL_CBWR": "COMPATIBLE"},
+                            cwd=REPO, capture_output=True, text=True, check=True).stdout.split()
+    assert chosen == ["DEFAULT", "COMPATIBLE"]

@@ -170,13 +170,14 @@ def test_a_family_whose_roots_circle_shows_in_the_root_path_table(published_tabl
     paths = column_array(table, "root_path", meta["shapes"]["root_path"]).astype(np.float64)
     looping = generator == "backwards"
     paths[looping] = [_loop(p, 10 + (k % 35)) for k, p in enumerate(paths[looping])]
-    figures = measure(_replace(table, "root_path", paths), meta)["root_path"]
+    measured = measure(_replace(table, "root_path", paths), meta)
+    figures = measured["root_path"]
     # the real mocap walks hardly ever loop; the nodding family is real walks unchanged, the other circles in each
     assert figures["real_walks"]["loops"] < 0.01 and figures["real_walks"]["gaits"] > len(walks)
     assert figures["nodding"]["loops"] < 0.02 and figures["nodding"]["frames_against_travel"] < 0.01
     assert figures["backwards"]["loops"] == 1.0 and figures["backwards"]["reversals"] == 1.0
     assert figures["backwards"]["frames_against_travel"] > figures["nodding"]["frames_against_travel"] + 0.05
     assert figures["backwards"]["gaits"] == len(walks)
-    section = card_section(measure(_replace(table, "root_path", paths), meta))
+    section = card_section(measured)
     assert "| `backwards` | " + str(len(walks)) + " | 100.00 % | 100.00 % |" in section
     assert "| real walks | " in section

@@ -386,6 +386,6 @@ def test_forward_steps_only_keeps_the_root_from_stepping_back_on_the_plan(family
     assert figures["free"]["loops"] > 0.02 and figures["free"]["frames_against_travel"] > 0.002, figures
     assert figures["forward"]["loops"] <= 0.25 * figures["free"]["loops"], figures
     assert figures["forward"]["reversals"] <= 0.25 * figures["free"]["reversals"], figures
-    # what steps against the travel are left follow sideways sway at a turn, not a step back
+    # fewer steps against the travel are left (the sway at a turn can still point one back)
     assert figures["forward"]["frames_against_travel"] < figures["free"]["frames_against_travel"], figures
     assert walked["forward"] > 0.98 * walked["free"]

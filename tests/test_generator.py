@@ -11,8 +11,8 @@ import torch
 
 from pipeline.evaluation.autoregressive import constant_velocity, pose_errors, straight_path, turn_path, zero_velocity
 from pipeline.io.files import write_bytes
-from pipeline.generators.autoregressive.rollout import (PlacementConfig, Seeds, generate, place_paths, smoothed_root,
-                                                      stance_step, swinging_points)
+from pipeline.generators.autoregressive.rollout import (PlacementConfig, Seeds, generate, place_paths, placed_step,
+                                                      smoothed_root, stance_step, swinging_points)
 from pipeline.generators.autoregressive.fit import variant_configs
 from pipeline.generators.autoregressive.network import (FOOT_JOINTS, EmotiveGaitNet, GeneratorConfig, LossWeights,
                                                        fixed_bones, generator_losses)
@@ -274,6 +274,20 @@ def test_a_swing_foot_skimming_below_the_stance_foot_does_not_carry_the_root_bac
     swing = torch.tensor([[False, False, True, True]])
     assert float(stance_step(previous, now, 0.002, 0.1)[0, 1]) < 0  # the lowest point rules: the root goes back
     assert torch.allclose(stance_step(previous, now, 0.002, 0.1, swing)[0], torch.tensor([0.0, 0.04]))
+
+
+def test_a_placed_step_against_the_travel_loses_that_part_only_when_the_placement_says_so():
+    previous = torch.zeros(2, 4, 3)
+    now = previous.clone()
+    now[0, :, 2] += 0.03  # the stance point slips forward: the root would go back 3 cm ...
+    now[1, :, 0] -= 0.02  # ... or 2 cm sideways, which is not against the travel
+    along = torch.tensor([[0.0, 1.0], [0.0, 1.0]])  # travelling +z
+    kept = placed_step(previous, now, along, PlacementConfig())
+    assert torch.allclose(kept, torch.tensor([[0.0, -0.03], [0.02, 0.0]]))
+    forward = placed_step(previous, now, along, PlacementConfig(forward_steps_only=True))
+    assert torch.allclose(forward, torch.tensor([[0.0, 0.0], [0.02, 0.0]]))
+    slow = placed_step(previous, now, along, PlacementConfig(max_speed_m_s=0.3))  # 1 cm per frame at 30 fps
+    assert torch.allclose(torch.linalg.vector_norm(slow, dim=-1), torch.tensor([0.01, 0.01]))
 
 
 def test_stance_foot_placement_keeps_the_lowest_point_planted(gaits, offsets, skeleton):

@@ -189,6 +189,15 @@ def forward_only(step: torch.Tensor, along: torch.Tensor) -> torch.Tensor:
     return step - (step * along).sum(-1, keepdim=True).clamp(max=0.0) * along
 
 
+def placed_step(previous_feet: torch.Tensor, feet: torch.Tensor, along: torch.Tensor, cfg: PlacementConfig,
+                swinging: torch.Tensor | None = None) -> torch.Tensor:
+    """The root's ground step (N, 2) under the placement rules: the stance foot's (``stance_step``, at most
+    ``max_speed_m_s``), without its part against the travel direction ``along`` with ``forward_steps_only``.
+    Every family that places its root by the stance foot steps through here."""
+    step = stance_step(previous_feet, feet, cfg.stance_softness_m, cfg.max_speed_m_s / cfg.fps, swinging)
+    return forward_only(step, along) if cfg.forward_steps_only else step
+
+
 def swinging_points(theta: torch.Tensor, stance_fraction: float) -> torch.Tensor:
     """(..., 4) bool in ``ops.contacts.CONTACT_POINTS`` order: the heel/toe points of a foot in its swing phase by
     the stepping phase θ (...) (0 at a left strike, π at the next right strike): a foot is down for the first
@@ -276,10 +285,7 @@ def generate(model: EmotiveGaitNet, seeds: Seeds, paths: torch.Tensor, emotions:
         nominal = speed[:, None] * along  # the step the predicted root speed asks for
         if stance_foot:
             swinging = swinging_points(theta[:, t], cfg.stance_fraction) if cfg.stance_fraction < 1.0 else None
-            step = stance_step(previous_feet, local[:, feet], cfg.stance_softness_m, cfg.max_speed_m_s / cfg.fps,
-                               swinging)
-            if cfg.forward_steps_only:
-                step = forward_only(step, along)
+            step = placed_step(previous_feet, local[:, feet], along, cfg, swinging)
             previous_feet = local[:, feet]
             relative = to_local_frame(step, along)  # (sideways, ahead) of the travel direction
             mean_step = mean_step + (relative - mean_step) / (cfg.drift_seconds * cfg.fps)

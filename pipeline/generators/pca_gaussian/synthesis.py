@@ -17,7 +17,7 @@ durations, cross-faded, steered along the planned path and carried by the stance
   neither faces aside nor turns); the body's direction ψ steers towards the point ``lookahead_m`` ahead on the
   path (pure pursuit, at most ``max_turn_deg_per_s``), and the pelvis is yaw(ψ) times the cycle's.
 * **Root:** the lowest heel/toe point among the feet that the cycle's own stepping phase (π at each cycle's start)
-  says are down stays where it stood (``rollout.stance_step``, paper §7.2; with ``generate.forward_steps_only``
+  says are down stays where it stood (``rollout.placed_step``, paper §7.2; with ``generate.forward_steps_only``
   its part against the travel direction is dropped, as for the autoregressive family), and stays at the real
   walks' median height of the lowest foot point (so the root rises and falls with the legs); then root
   smoothing (its own window, ``WalkSettings.root_smoothing_s``, by the autoregressive family's rule) and the same
@@ -35,8 +35,7 @@ import numpy as np
 import torch
 
 from pipeline.generators.autoregressive.network import FOOT_JOINTS, sharpened
-from pipeline.generators.autoregressive.rollout import (PlacementConfig, forward_only, smoothed_root, stance_step,
-                                                       swinging_points)
+from pipeline.generators.autoregressive.rollout import PlacementConfig, placed_step, smoothed_root, swinging_points
 from pipeline.generators.base import GeneratedMotion, fit_placed
 from pipeline.generators.pca_gaussian.model import StyleModel, blend, sample_cycles
 from pipeline.ops.footlock import lock_feet
@@ -194,9 +193,7 @@ def walk(model: CycleModel, rows: Sequence[dict[str, Any]], paths: torch.Tensor,
         relative = canonical_positions(torch.zeros(n, 3), pose, offsets, parents)[:, foot_joints]
         if previous_feet is not None:
             swinging = swinging_points(theta[:, t], placement.stance_fraction)
-            step = stance_step(previous_feet, relative, placement.stance_softness_m,
-                               placement.max_speed_m_s / placement.fps, swinging)
-            ground = ground + (forward_only(step, unit_direction(travel)) if placement.forward_steps_only else step)
+            ground = ground + placed_step(previous_feet, relative, unit_direction(travel), placement, swinging)
         previous_feet = relative
         height = model.foot_floor_m - relative[..., 1].min(-1).values
         rotations.append(pose)

@@ -32,7 +32,7 @@ import yaml  # noqa: E402
 
 from pipeline.dataset import load_dataframe  # noqa: E402
 from pipeline.io.files import write_json  # noqa: E402
-from pipeline.publish.limitations import LOOP_DEG, REVERSAL_DEG, root_path_figures  # noqa: E402
+from pipeline.publish.limitations import LOOP_DEG, REVERSAL_DEG, root_path_row  # noqa: E402
 from stages.common import load_params  # noqa: E402
 
 OUT = REPO / "benchmarks" / "out" / "root_loops.json"
@@ -40,20 +40,16 @@ PUBLISHED = Path("data") / "published" / "synthesized_emotive_gaits"
 COLUMNS = ["kind", "generator", "content", "trajectory_family", "root_path"]
 
 
-def summary(root_path: np.ndarray, frames: int) -> dict:
-    return {"gaits": int(len(root_path)), **{k: round(v, 4) for k, v in root_path_figures(root_path, frames).items()}}
-
-
 def groups(directory: Path, frames: int) -> dict:
     frame = load_dataframe(directory, COLUMNS)
     paths = np.stack(frame["root_path"].to_list())
     real = (frame["kind"] == "real").to_numpy()
-    out = {"real walks": summary(paths[real & (frame["content"] == "walk").to_numpy()], frames)}
+    out = {"real walks": root_path_row(paths[real & (frame["content"] == "walk").to_numpy()], frames)}
     for family in sorted(frame.loc[~real, "generator"].unique()):
         rows = (frame["generator"] == family).to_numpy()
-        out[family] = summary(paths[rows], frames)
+        out[family] = root_path_row(paths[rows], frames)
         out[family]["by_trajectory_family"] = {
-            shape: summary(paths[rows & (frame["trajectory_family"] == shape).to_numpy()], frames)
+            shape: root_path_row(paths[rows & (frame["trajectory_family"] == shape).to_numpy()], frames)
             for shape in sorted(frame.loc[rows, "trajectory_family"].dropna().unique())}
     return out
 

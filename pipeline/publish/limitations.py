@@ -68,6 +68,14 @@ def root_path_figures(root_path: np.ndarray, frames: int) -> dict[str, float]:
             "frames_against_travel": float(against.mean())}
 
 
+def root_path_row(root_path: np.ndarray, frames: int) -> dict[str, Any]:
+    """The card's row of a group of root paths (N, T, 2): its gait count and ``root_path_figures`` to 4 places
+    (None for an empty group)."""
+    if not len(root_path):
+        return {"gaits": 0, "loops": None, "reversals": None, "frames_against_travel": None}
+    return {"gaits": int(len(root_path)), **{k: round(v, 4) for k, v in root_path_figures(root_path, frames).items()}}
+
+
 def measure(table: pa.Table, meta: dict[str, Any]) -> dict[str, Any]:
     """The figures (JSON-ready) of a published table (real and synthetic rows) and its schema metadata."""
     shapes, fps = meta["shapes"], float(meta["fps"])
@@ -115,14 +123,8 @@ def measure(table: pa.Table, meta: dict[str, Any]) -> dict[str, Any]:
         trunk[f] = {**turn_row(generator == f, own), "ratio_to_real": {
             j: round(float(own[k] / real_turn[k]), 2) for k, j in enumerate(TRUNK_JOINTS)}}
     loop_frames = max(2, round(LOOP_SECONDS * fps))
-
-    def root_row(mask: np.ndarray) -> dict[str, Any]:
-        if not mask.any():
-            return {"gaits": 0, "loops": None, "reversals": None, "frames_against_travel": None}
-        return {"gaits": int(mask.sum()),
-                **{k: round(v, 4) for k, v in root_path_figures(root_path[mask], loop_frames).items()}}
-
-    root_paths = {"real_walks": root_row(real & (content == "walk")), **{f: root_row(generator == f) for f in families}}
+    root_paths = {name: root_path_row(root_path[mask], loop_frames) for name, mask in
+                  (("real_walks", real & (content == "walk")), *((f, generator == f) for f in families))}
     row_of = {g: i for i, g in enumerate(gait_id)}
     seeds = {}
     for f in families:

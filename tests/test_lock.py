@@ -74,18 +74,28 @@ def test_the_installed_environment_is_the_lock():
     assert not wrong, f"installed versions differ from requirements.lock (locked, installed): {wrong}"
 
 
-def test_importing_the_library_pins_torch_s_cpu_code_paths_unless_the_user_set_them():
-    """MKL and ATen pick their kernels by CPU; unpinned, an AVX-512 machine wrote other bytes than an AVX2 one."""
+OPENBLAS_CORE = ("import ctypes; lib = ctypes.CDLL(next(l.split()[-1] for l in open('/proc/self/maps') "
+                 "if 'openblas' in l)); f = next(getattr(lib, n) for n in ('scipy_openblas_get_corename64_', "
+                 "'openblas_get_corename64_', 'openblas_get_corename') if hasattr(lib, n)); "
+                 "f.restype = ctypes.c_char_p; core = f().decode(); ")
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads the loaded OpenBLAS from /proc/self/maps")
+def test_a_stage_process_runs_the_pinned_cpu_code_paths_unless_the_user_set_them():
+    """MKL, ATen and OpenBLAS pick their kernels by CPU; unpinned, an AVX-512 machine wrote other bytes than an AVX2
+    one. OpenBLAS reads its pin when numpy loads, so a stage must set it before: importing ``stages`` loads no numpy."""
     import os
     import subprocess
 
-    probe = ("import os, torch, pipeline; torch.ones(3).sum(); "
-             "print(torch.backends.cpu.get_cpu_capability(), os.environ['MKL_CBWR'])")
-    env = {k: v for k, v in os.environ.items() if k not in ("MKL_CBWR", "ATEN_CPU_CAPABILITY")}
-    pinned = subprocess.run([sys.executable, "-c", probe], env=env, cwd=REPO, capture_output=True, text=True,
-                            check=True).stdout.split()
-    assert pinned == ["AVX2", "AVX2"]
-    chosen = subprocess.run([sys.executable, "-c", probe], env={**env, "ATEN_CPU_CAPABILITY": "default",
-                                                                "MKL_CBWR": "COMPATIBLE"},
-                            cwd=REPO, capture_output=True, text=True, check=True).stdout.split()
-    assert chosen == ["DEFAULT", "COMPATIBLE"]
+    probe = ("import os, sys, stages; early = 'numpy' in sys.modules; import numpy, torch; torch.ones(3).sum(); "
+             + OPENBLAS_CORE + "print(early, torch.backends.cpu.get_cpu_capability(), os.environ['MKL_CBWR'], "
+             "os.environ['OPENBLAS_CORETYPE'], core)")
+    env = {k: v for k, v in os.environ.items() if k not in ("MKL_CBWR", "ATEN_CPU_CAPABILITY", "OPENBLAS_CORETYPE")}
+
+    def run(**chosen: str) -> list[str]:
+        return subprocess.run([sys.executable, "-c", probe], env={**env, **chosen}, cwd=REPO, capture_output=True,
+                              text=True, check=True).stdout.split()
+
+    assert run() == ["False", "AVX2", "AVX2", "Haswell", "Haswell"]  # (Haswell is also what AMD Zen picks)
+    assert run(ATEN_CPU_CAPABILITY="default", MKL_CBWR="COMPATIBLE", OPENBLAS_CORETYPE="Sandybridge") == [
+        "False", "DEFAULT", "COMPATIBLE", "Sandybridge", "Sandybridge"]

@@ -54,6 +54,12 @@ def small_repro(tmp_path_factory, mocap) -> SmallRepro:
     params["train"]["model"].update(gru_hidden=32, versor_hidden=32)
     params["evaluate"].update(rollout_steps=50, rollout_agents=3, expressiveness_steps=20, transition_steps=20,
                               transition_agents=2)
+    # The audit and the family comparison fit recognisers many times over (seeds x augmentations x families); here
+    # a few fits, each short, since the kill test below runs every stage about three times more. The real-only CNN
+    # fit keeps its full length (its labelled train gaits take fewer steps than the cap), so real labels still read.
+    params["audit"].update(seeds={"summary_mlp": [0, 1], "temporal_cnn": [0]}, bootstrap_resamples=200)
+    params["audit"]["recognisers"]["temporal"]["max_steps"] = 160
+    params["evaluate_families"].update(sensitivity_rows=8, ablation_rows=24)
     (work / "params.yaml").write_text(yaml.safe_dump(params))
     env = dict(os.environ, DVC_NO_ANALYTICS="1", PATH=f"{Path(sys.executable).parent}:{os.environ['PATH']}")
     _run(["git", "init", "-q"], work, env)
@@ -93,7 +99,7 @@ def test_dvc_repro_runs_every_stage_then_is_a_noop(small_repro, tmp_path):
     assert (work / "reports/eval.md").read_text().startswith("# Generator evaluation")
     published = work / "data/published/synthesized_emotive_gaits"
     check_published(published, work)
-    check_audit(work / "reports/audit", published, tmp_path)
+    check_audit(work / "reports/audit", published, tmp_path, work / "params.yaml")
     before = _digests(published)
     # Rerun what makes the published files: every byte the same, provenance.json and SHA256SUMS included (they
     # carry the md5 of every stage output in dvc.lock, so no output may hold a timing).
@@ -291,8 +297,9 @@ def check_hugging_face(published: Path, frame, cache: Path) -> None:
         assert positions.shape == (expected, 60, 21, 3) and np.array_equal(positions[0], first), name
 
 
-def check_audit(reports: Path, published: Path, tmp_path: Path) -> None:
-    """The audit stage's report, and `emogait audit` on a copy of the published directory moved elsewhere."""
+def check_audit(reports: Path, published: Path, tmp_path: Path, params: Path) -> None:
+    """The audit stage's report, and `emogait audit` (with the run's ``params``) on a copy of the published
+    directory moved elsewhere: the same figures."""
     from stages.cli import main as emogait
 
     metrics = json.loads((reports / "metrics.json").read_text())
@@ -308,7 +315,7 @@ def check_audit(reports: Path, published: Path, tmp_path: Path) -> None:
     assert page.count("data:image/png;base64,") == len(list(reports.glob("*.png"))) == 7
     moved = tmp_path / "downloads" / "someone_elses_copy"
     shutil.copytree(published, moved)
-    assert emogait(["audit", str(moved), "--out", str(tmp_path / "their_audit")]) == 0
+    assert emogait(["audit", str(moved), "--out", str(tmp_path / "their_audit"), "--params", str(params)]) == 0
     theirs = json.loads((tmp_path / "their_audit" / "metrics.json").read_text())
     assert theirs["labels"] == metrics["labels"] and theirs["recognisability"] == recognition
 

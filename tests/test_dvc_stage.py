@@ -56,7 +56,7 @@ def small_repro(tmp_path_factory, mocap) -> SmallRepro:
                               transition_agents=2)
     # The audit and the family comparison fit recognisers many times over (seeds x augmentations x families); here
     # a few fits, each short, since the kill test below runs every stage about three times more. The real-only CNN
-    # fit keeps its full length (its labelled train gaits take fewer steps than the cap), so real labels still read.
+    # fit keeps its full length (207 labelled train gaits: 4 batches x 40 epochs, the cap), so real labels still read.
     params["audit"].update(seeds={"summary_mlp": [0, 1], "temporal_cnn": [0]}, bootstrap_resamples=200)
     params["audit"]["recognisers"]["temporal"]["max_steps"] = 160
     params["evaluate_families"].update(sensitivity_rows=8, ablation_rows=24)

@@ -55,8 +55,10 @@ def small_repro(tmp_path_factory, mocap) -> SmallRepro:
     params["evaluate"].update(rollout_steps=50, rollout_agents=3, expressiveness_steps=20, transition_steps=20,
                               transition_agents=2)
     # The audit and the family comparison fit recognisers many times over (seeds x augmentations x families); here
-    # a few fits, each short, since the kill test below runs every stage about three times more. The real-only CNN
-    # fit keeps its full length (207 labelled train gaits: 4 batches x 40 epochs, the cap), so real labels still read.
+    # a few fits, each short, since the kill test below runs every stage about three times more. The CNN cap is the
+    # real-only fit's whole length today (207 labelled train gaits: 4 batches of 64 x 40 epochs), so only the
+    # augmented fits are cut; should the labelled train split grow, the real-only fit is cut too, and the check that
+    # real labels are learnable (check_audit) is what would say so.
     params["audit"].update(seeds={"summary_mlp": [0, 1], "temporal_cnn": [0]}, bootstrap_resamples=200)
     params["audit"]["recognisers"]["temporal"]["max_steps"] = 160
     params["evaluate_families"].update(sensitivity_rows=8, ablation_rows=24)
